@@ -1,0 +1,17 @@
+"""Float64 switch: checked by the library, set only by entry points (CLI, examples, tests)."""
+
+import jax
+
+
+def enable_x64() -> None:
+    """Make JAX compute in float64. Call before any JAX array is created."""
+    jax.config.update("jax_enable_x64", True)
+
+
+def require_x64() -> None:
+    """Raise a clear error when JAX would silently compute in float32."""
+    if not jax.config.read("jax_enable_x64"):
+        raise RuntimeError(
+            "beamcontact needs float64: set JAX_ENABLE_X64=1 or call "
+            "beamcontact.enable_x64() before creating arrays"
+        )

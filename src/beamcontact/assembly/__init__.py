@@ -1,0 +1,1 @@
+"""Global numbering, Dirichlet conditions, and assembly of local AD forces and tangents."""

@@ -1,0 +1,173 @@
+"""From a validated case to the discrete model: refined axes, meshes, numbering, loads.
+
+Host-side NumPy; the result is a :class:`Model` pytree plus a :class:`Discretization`
+that keeps what the writers need (curves, offsets, names).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from beamcontact.assembly.model import BeamBlock, Model, PointLoads, as_float
+from beamcontact.beam.mesh import BeamMesh, build_mesh, point_basis, refine_axis
+from beamcontact.beam.section import Section, circle_section, rectangle_section
+from beamcontact.io.case import Beam, Case, at_fraction
+from beamcontact.spline import NurbsCurve, arc, line
+
+
+@dataclass(frozen=True, eq=False)
+class BeamInfo:
+    """Host-side description of one discretised beam."""
+
+    name: str
+    mesh: BeamMesh
+    section: Section
+    offset: int  # global index of its first control point
+    length: float  # reference arc length
+
+    @property
+    def curve(self) -> NurbsCurve:
+        """The refined reference axis."""
+        return self.mesh.curve
+
+    @property
+    def n_cp(self) -> int:
+        """Number of control points."""
+        return self.curve.n_points
+
+    def parameter(self, fraction: float) -> float:
+        """Parameter at a fraction of the reference arc length."""
+        return float(self.curve.parameters_at_lengths([fraction])[0])
+
+
+@dataclass(frozen=True, eq=False)
+class Discretization:
+    """All beams, in global order, and the total number of control points."""
+
+    beams: tuple[BeamInfo, ...]
+    n_cp: int
+
+    def beam(self, name: str) -> BeamInfo:
+        """The beam called ``name``."""
+        return next(b for b in self.beams if b.name == name)
+
+    @property
+    def length_scale(self) -> float:
+        """Longest reference beam length (scale of the increment tolerance)."""
+        return max(b.length for b in self.beams)
+
+
+def axis_curve(beam: Beam) -> NurbsCurve:
+    """The exact reference axis of a beam as given in the case."""
+    if beam.line is not None:
+        return line(beam.line.start, beam.line.end)
+    if beam.arc is not None:
+        a = beam.arc
+        return arc(a.center, a.radius, a.start_angle, a.end_angle)
+    nb = beam.nurbs
+    knots = np.asarray(nb.knots, float)
+    knots = (knots - knots[0]) / (knots[-1] - knots[0])
+    w = np.ones(len(nb.points)) if nb.weights is None else np.asarray(nb.weights, float)
+    return NurbsCurve(nb.degree, knots, np.asarray(nb.points, float), w)
+
+
+def make_section(beam: Beam) -> Section:
+    """Section quadrature for the beam's cross section."""
+    s = beam.section
+    if s.shape == "circle":
+        return circle_section(s.radius)
+    return rectangle_section(s.width, s.height)
+
+
+def _reference_metric(mesh: BeamMesh) -> tuple[np.ndarray, np.ndarray]:
+    x = mesh.curve.points[mesh.conn]  # (n_el, n_loc, 2)
+    g1 = np.einsum("eqk,ekd->eqd", mesh.dR, x)
+    g1d = np.einsum("eqk,ekd->eqd", mesh.ddR, x)
+    g = np.sum(g1 * g1, axis=-1)
+    K = (g1[..., 0] * g1d[..., 1] - g1[..., 1] * g1d[..., 0]) / g**1.5
+    return g, K
+
+
+def discretize(case: Case) -> Discretization:
+    """Refine every beam's axis and build its mesh (numbering follows the case order)."""
+    infos, offset = [], 0
+    for b in case.beams:
+        curve = refine_axis(axis_curve(b), b.degree, b.elements, b.smoothness)
+        mesh = build_mesh(curve)
+        section = make_section(b)
+        _, K = _reference_metric(mesh)
+        if np.max(np.abs(K)) * section.half_depth >= 1.0:
+            raise ValueError(f"beam {b.name!r}: the section half-depth exceeds the radius of "
+                             f"curvature of the axis")
+        infos.append(BeamInfo(b.name, mesh, section, offset, curve.arc_length()))
+        offset += curve.n_points
+    return Discretization(tuple(infos), offset)
+
+
+def _block(info: BeamInfo, beam: Beam) -> BeamBlock:
+    mesh = info.mesh
+    g, K = _reference_metric(mesh)
+    sec = info.section
+    return BeamBlock(
+        conn=np.asarray(mesh.conn + info.offset), R=as_float(mesh.R), dR=as_float(mesh.dR),
+        ddR=as_float(mesh.ddR), wq=as_float(mesh.wq), g_ref=as_float(g), K_ref=as_float(K),
+        eta=as_float(sec.eta), w_eta=as_float(sec.weights), E=as_float(beam.material.E),
+        rho_area=as_float(beam.material.density * sec.area),
+        gravity_on=as_float(1.0 if beam.gravity else 0.0))
+
+
+def _point_loads(case: Case, disc: Discretization) -> PointLoads:
+    n_loc = max(b.curve.degree + 1 for b in disc.beams)
+    n = len(case.loads)
+    conn = np.zeros((n, n_loc), dtype=np.int64)
+    R = np.zeros((n, n_loc))
+    dR = np.zeros((n, n_loc))
+    for i, load in enumerate(case.loads):
+        info = disc.beam(load.beam)
+        idx, d = point_basis(info.curve, info.parameter(at_fraction(load.at)))
+        m = len(idx)
+        conn[i, :m] = idx + info.offset
+        R[i, :m], dR[i, :m] = d[0], d[1]
+    force = np.array([ld.force for ld in case.loads], float).reshape(n, 2)
+    moment = np.array([ld.moment for ld in case.loads], float)
+    return PointLoads(conn=np.asarray(conn), R=as_float(R), dR=as_float(dR),
+                      force=as_float(force), moment=as_float(moment))
+
+
+def supported_dofs(case: Case, disc: Discretization) -> np.ndarray:
+    """Boolean mask of supported dofs (pinned: end point; clamped: also its neighbour)."""
+    fixed = np.zeros(2 * disc.n_cp, dtype=bool)
+    for b, info in zip(case.beams, disc.beams, strict=True):
+        for s in b.supports:
+            count = 1 if s.type == "pinned" else 2
+            local = range(count) if s.at == "start" else range(info.n_cp - count, info.n_cp)
+            for c in local:
+                fixed[2 * (info.offset + c) : 2 * (info.offset + c) + 2] = True
+    return fixed
+
+
+def build_model(case: Case, disc: Discretization | None = None) -> tuple[Model, Discretization]:
+    """The Model pytree for a validated case."""
+    disc = discretize(case) if disc is None else disc
+    x_ref = np.concatenate([b.curve.points for b in disc.beams])
+    model = Model(
+        beams=tuple(_block(info, b) for info, b in zip(disc.beams, case.beams, strict=True)),
+        loads=_point_loads(case, disc), x_ref=as_float(x_ref),
+        free=as_float(~supported_dofs(case, disc)), gravity=as_float(case.analysis.gravity))
+    return model, disc
+
+
+def point_sampler(disc: Discretization, name: str, fraction: float) -> tuple[np.ndarray,
+                                                                              np.ndarray]:
+    """Global control-point indices and basis values giving the point at ``fraction``."""
+    info = disc.beam(name)
+    idx, d = point_basis(info.curve, info.parameter(fraction))
+    return idx + info.offset, d[0]
+
+
+def polyline_matrix(info: BeamInfo, samples_per_element: int) -> np.ndarray:
+    """Dense matrix mapping the beam's control points to polyline vertices along its axis."""
+    breaks = info.mesh.breaks
+    u = np.unique(np.concatenate([np.linspace(a, b, samples_per_element + 1)
+                                  for a, b in zip(breaks[:-1], breaks[1:], strict=True)]))
+    return info.curve.basis_matrix(u)[0]

@@ -1,0 +1,110 @@
+"""The discrete model as JAX pytrees: beams' element data, point loads, supports.
+
+This is the only place that knows the global numbering: control point c of the whole
+model owns dofs 2c (x) and 2c+1 (y); beam b's points follow those of beams 0..b-1.
+"""
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+def _pytree(cls=None, *, meta=()):
+    """Frozen dataclass registered as a pytree; fields named in ``meta`` are static."""
+
+    def wrap(c):
+        c = dataclass(frozen=True, eq=False)(c)
+        names = [f.name for f in c.__dataclass_fields__.values()]
+        data = [n for n in names if n not in meta]
+        return jax.tree_util.register_dataclass(c, data_fields=data, meta_fields=list(meta))
+
+    return wrap if cls is None else wrap(cls)
+
+
+@_pytree
+class BeamBlock:
+    """All elements of one beam.
+
+    Shapes: conn (n_el, n_loc) global control-point indices; R, dR, ddR (n_el, n_qp, n_loc);
+    wq, g_ref, K_ref (n_el, n_qp); eta, w_eta (n_eta,); scalars E, rho_area (mass per
+    reference length), gravity_on (1.0 or 0.0).
+    """
+
+    conn: jax.Array
+    R: jax.Array
+    dR: jax.Array
+    ddR: jax.Array
+    wq: jax.Array
+    g_ref: jax.Array
+    K_ref: jax.Array
+    eta: jax.Array
+    w_eta: jax.Array
+    E: jax.Array
+    rho_area: jax.Array
+    gravity_on: jax.Array
+
+
+@_pytree
+class PointLoads:
+    """Point forces and moments, padded to a common n_loc (padding has R = dR = 0).
+
+    Shapes: conn (n_load, n_loc); R, dR (n_load, n_loc); force (n_load, 2); moment (n_load,).
+    """
+
+    conn: jax.Array
+    R: jax.Array
+    dR: jax.Array
+    force: jax.Array
+    moment: jax.Array
+
+
+@_pytree
+class LoadState:
+    """Rotation and tangent of each load point at the last converged state."""
+
+    theta: jax.Array
+    tangent: jax.Array
+
+
+@_pytree
+class Model:
+    """Everything the kernels need; varying numbers are array data (one compile per shape).
+
+    Attributes:
+        beams: one BeamBlock per beam.
+        loads: point loads (n_load may be 0).
+        x_ref: reference control points of the whole model, shape (n_cp, 2).
+        free: 1.0 for free dofs, 0.0 for supported ones, shape (2 n_cp,).
+        gravity: acceleration of gravity, shape (2,).
+    """
+
+    beams: tuple
+    loads: PointLoads
+    x_ref: jax.Array
+    free: jax.Array
+    gravity: jax.Array
+
+    @property
+    def n_dof(self) -> int:
+        """Number of dofs, 2 per control point."""
+        return 2 * self.x_ref.shape[0]
+
+
+def element_dofs(conn: jax.Array) -> jax.Array:
+    """Dofs of each element in the order of x_e.ravel(): (.., n_loc) -> (.., 2 n_loc)."""
+    return jnp.stack([2 * conn, 2 * conn + 1], axis=-1).reshape(*conn.shape[:-1], -1)
+
+
+def initial_load_state(model: Model) -> LoadState:
+    """Zero rotation and the reference tangent at every load point."""
+    t = jnp.einsum("lk,lkd->ld", model.loads.dR, model.x_ref[model.loads.conn])
+    return LoadState(theta=jnp.zeros(t.shape[0]), tangent=t)
+
+
+def as_float(x) -> jax.Array:
+    """Host value -> float64 JAX array."""
+    return jnp.asarray(np.asarray(x, dtype=np.float64))
+
+

@@ -1,0 +1,93 @@
+"""Global residual and tangent from local energies (DESIGN.md Sec. 2).
+
+Each term is a scalar energy of one element's (or one load point's) control points;
+``jax.grad`` and ``jax.hessian`` act locally, ``vmap`` runs over elements, and the
+results are scattered into the global vector and matrix. No global Hessian is formed
+by AD.
+
+Static total potential (load factor lam scales all external actions):
+    Pi(u) = sum_e Pi_int,e + lam (sum_e Pi_grav,e + sum_l Pi_load,l).
+"""
+
+import jax
+import jax.numpy as jnp
+
+from beamcontact.assembly.model import BeamBlock, LoadState, Model, element_dofs
+from beamcontact.beam.energy import element_gravity_potential, element_strain_energy
+from beamcontact.beam.loads import point_load_potential
+
+
+def _beam_energy(x_e, blk_e, blk: BeamBlock, lam, gravity):
+    R, dR, ddR, wq, g_ref, K_ref = blk_e
+    strain = element_strain_energy(x_e, dR, ddR, wq, g_ref, K_ref, blk.eta, blk.w_eta, blk.E)
+    grav = element_gravity_potential(x_e, R, wq, g_ref, blk.rho_area * blk.gravity_on, gravity)
+    return strain + lam * grav
+
+
+def _element_arrays(blk: BeamBlock):
+    return (blk.R, blk.dR, blk.ddR, blk.wq, blk.g_ref, blk.K_ref)
+
+
+def _load_energy(x_l, R, dR, force, moment, theta, tangent, lam):
+    return lam * point_load_potential(x_l, R, dR, force, moment, theta, tangent)
+
+
+def energies(u: jax.Array, model: Model, lam, load_state: LoadState) -> dict:
+    """Strain energy, gravity potential and load potential at displacement u (flat)."""
+    x = model.x_ref + u.reshape(-1, 2)
+    e_strain = 0.0
+    e_grav = 0.0
+    for blk in model.beams:
+        xe = x[blk.conn]
+        e_strain += jnp.sum(jax.vmap(element_strain_energy, (0, 0, 0, 0, 0, 0, None, None, None))(
+            xe, blk.dR, blk.ddR, blk.wq, blk.g_ref, blk.K_ref, blk.eta, blk.w_eta, blk.E))
+        e_grav += lam * jnp.sum(jax.vmap(element_gravity_potential, (0, 0, 0, 0, None, None))(
+            xe, blk.R, blk.wq, blk.g_ref, blk.rho_area * blk.gravity_on, model.gravity))
+    ld = model.loads
+    e_ext = jnp.sum(jax.vmap(_load_energy, (0, 0, 0, 0, 0, 0, 0, None))(
+        x[ld.conn], ld.R, ld.dR, ld.force, ld.moment, load_state.theta, load_state.tangent, lam))
+    return {"E_strain": e_strain, "E_gravity": e_grav, "E_ext": e_ext}
+
+
+def _scatter(r, K, dofs, r_e, k_e):
+    r = r.at[dofs].add(r_e)
+    K = K.at[dofs[:, :, None], dofs[:, None, :]].add(k_e)
+    return r, K
+
+
+def potential_residual_tangent(u: jax.Array, model: Model, lam, load_state: LoadState):
+    """Gradient (residual) and Hessian (tangent) of the static potential, unconstrained."""
+    n = model.n_dof
+    x = model.x_ref + u.reshape(-1, 2)
+    r = jnp.zeros(n)
+    K = jnp.zeros((n, n))
+    for blk in model.beams:
+        def local(xe_flat, blk_e, blk=blk):
+            return _beam_energy(xe_flat.reshape(-1, 2), blk_e, blk, lam, model.gravity)
+
+        xe = x[blk.conn].reshape(blk.conn.shape[0], -1)
+        arrays = _element_arrays(blk)
+        r_e = jax.vmap(jax.grad(local))(xe, arrays)
+        k_e = jax.vmap(jax.hessian(local))(xe, arrays)
+        r, K = _scatter(r, K, element_dofs(blk.conn), r_e, k_e)
+    ld = model.loads
+    if ld.conn.shape[0] > 0:
+        def load_local(xl_flat, R, dR, force, moment, theta, tangent):
+            return _load_energy(xl_flat.reshape(-1, 2), R, dR, force, moment, theta, tangent, lam)
+
+        xl = x[ld.conn].reshape(ld.conn.shape[0], -1)
+        args = (xl, ld.R, ld.dR, ld.force, ld.moment, load_state.theta, load_state.tangent)
+        r_l = jax.vmap(jax.grad(load_local))(*args)
+        k_l = jax.vmap(jax.hessian(load_local))(*args)
+        r, K = _scatter(r, K, element_dofs(ld.conn), r_l, k_l)
+    return r, K
+
+
+def apply_supports(r: jax.Array, K: jax.Array, free: jax.Array):
+    """Zero the residual of supported dofs and replace their rows/columns by the identity.
+
+    Supported dofs keep their (zero) displacement because their Newton increment is zero.
+    """
+    r = r * free
+    K = K * free[:, None] * free[None, :] + jnp.diag(1.0 - free)
+    return r, K

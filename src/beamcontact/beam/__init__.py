@@ -1,0 +1,1 @@
+"""Planar rotation-free Bernoulli-Euler beam (paper Sec. 3): sections, meshes, local energies."""

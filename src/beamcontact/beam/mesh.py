@@ -1,0 +1,86 @@
+"""Isogeometric beam mesh: refined NURBS axis, elements, and basis values at Gauss points.
+
+The reference geometry is refined without change (degree elevation, then knot insertion
+at equal reference arc-length fractions), and the rational basis R, dR/dxi, d2R/dxi2 is
+evaluated once at the p+1 Gauss points of every element (Lagrangian parametrisation).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from beamcontact.spline import NurbsCurve, elevate_degree, nurbs_basis_derivatives, refine_knots
+from beamcontact.spline.knots import element_breaks
+
+
+def refine_axis(curve: NurbsCurve, degree: int, elements: int, continuity: int) -> NurbsCurve:
+    """Elevate ``curve`` to ``degree`` and split it into ``elements`` equal-length elements.
+
+    New knots get multiplicity degree - continuity. Interior knots the geometry already
+    has stay element boundaries (so a NURBS given with interior knots may end with more
+    elements than asked for).
+    """
+    if degree < curve.degree:
+        raise ValueError(f"degree {degree} is below the geometry's degree {curve.degree}")
+    fine = elevate_degree(curve, degree - curve.degree)
+    existing = element_breaks(fine.knots)
+    new = fine.parameters_at_lengths(np.arange(1, elements) / elements)
+    new = [u for u in new if np.min(np.abs(existing - u)) > 1e-10]
+    return refine_knots(fine, np.repeat(new, degree - continuity))
+
+
+@dataclass(frozen=True, eq=False)
+class BeamMesh:
+    """Elements of one beam with basis data at the Gauss points.
+
+    Attributes:
+        curve: the refined reference axis (its control points are the unknowns' reference).
+        conn: local control-point indices of each element, shape (n_el, p+1).
+        breaks: element boundaries in the parameter, shape (n_el+1,).
+        R, dR, ddR: rational basis and derivatives at Gauss points, shape (n_el, n_qp, p+1).
+        wq: Gauss weight times d xi / d xi_hat, shape (n_el, n_qp).
+        xi_qp: parameters of the Gauss points, shape (n_el, n_qp).
+    """
+
+    curve: NurbsCurve
+    conn: np.ndarray
+    breaks: np.ndarray
+    R: np.ndarray
+    dR: np.ndarray
+    ddR: np.ndarray
+    wq: np.ndarray
+    xi_qp: np.ndarray
+
+    @property
+    def n_elements(self) -> int:
+        """Number of elements (non-empty knot spans)."""
+        return len(self.conn)
+
+
+def build_mesh(curve: NurbsCurve, n_qp: int | None = None) -> BeamMesh:
+    """Element connectivity and basis at ``n_qp`` Gauss points per element (default p+1)."""
+    p = curve.degree
+    n_qp = p + 1 if n_qp is None else n_qp
+    x, w = np.polynomial.legendre.leggauss(n_qp)
+    breaks = element_breaks(curve.knots)
+    n_el = len(breaks) - 1
+    conn = np.zeros((n_el, p + 1), dtype=np.int64)
+    ders = np.zeros((3, n_el, n_qp, p + 1))
+    wq = np.zeros((n_el, n_qp))
+    xi_qp = np.zeros((n_el, n_qp))
+    for e, (a, b) in enumerate(zip(breaks[:-1], breaks[1:], strict=True)):
+        uq = 0.5 * (b - a) * x + 0.5 * (a + b)
+        xi_qp[e] = uq
+        wq[e] = 0.5 * (b - a) * w
+        for q, u in enumerate(uq):
+            first, d = nurbs_basis_derivatives(curve.knots, p, curve.weights, u)
+            ders[:, e, q] = d
+        conn[e] = np.arange(first, first + p + 1)
+    return BeamMesh(curve=curve, conn=conn, breaks=breaks, R=ders[0], dR=ders[1],
+                    ddR=ders[2], wq=wq, xi_qp=xi_qp)
+
+
+def point_basis(curve: NurbsCurve, u: float) -> tuple[np.ndarray, np.ndarray]:
+    """Control-point indices and (R, dR, ddR) of shape (3, p+1) at parameter u."""
+    first, d = nurbs_basis_derivatives(curve.knots, curve.degree, curve.weights, u)
+    return np.arange(first, first + curve.degree + 1), d

@@ -1,0 +1,359 @@
+"""The case file: TOML validated by pydantic v2 (DESIGN.md Sec. 4).
+
+Every invalid value is reported as one line naming the key, e.g.
+``beams[0] (lower).section.radius: must be > 0, got -0.1``. SI units throughout.
+"""
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+
+
+class CaseError(ValueError):
+    """Invalid case: the message names the offending key."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+Vec2 = Annotated[list[float], Field(min_length=2, max_length=2)]
+Positive = Annotated[float, Field(gt=0.0)]
+
+
+def _check_at(value: Any) -> str | float:
+    """A place on a beam: "start", "end", or a fraction of its reference length in [0, 1]."""
+    if isinstance(value, str):
+        if value not in ("start", "end"):
+            raise ValueError(f'must be "start", "end" or a number in [0, 1], got {value!r}')
+        return value
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f'must be "start", "end" or a number in [0, 1], got {value!r}')
+    if not 0.0 <= float(value) <= 1.0:
+        raise ValueError(f"must lie in [0, 1], got {value}")
+    return float(value)
+
+
+def at_fraction(at: str | float) -> float:
+    """Fraction of the reference length for a validated ``at``."""
+    return {"start": 0.0, "end": 1.0}.get(at, at) if isinstance(at, str) else float(at)
+
+
+class Line(_Strict):
+    """Straight axis from ``start`` to ``end`` [m]."""
+
+    start: Vec2
+    end: Vec2
+
+    @model_validator(mode="after")
+    def _distinct(self):
+        if math.dist(self.start, self.end) == 0.0:
+            raise ValueError("start and end must differ")
+        return self
+
+
+class Arc(_Strict):
+    """Circular arc [m, rad]; angles counter-clockwise from +x, 0 < |end - start| < 2 pi."""
+
+    center: Vec2
+    radius: Positive
+    start_angle: float
+    end_angle: float
+
+    @field_validator("end_angle")
+    @classmethod
+    def _sweep(cls, v: float, info: ValidationInfo) -> float:
+        start = info.data.get("start_angle")
+        if start is not None and not 0.0 < abs(v - start) < 2.0 * math.pi:
+            raise ValueError(f"the sweep end_angle - start_angle must satisfy 0 < |sweep| < 2 pi,"
+                             f" got {v - start}")
+        return v
+
+
+class Nurbs(_Strict):
+    """A NURBS axis given directly (open knot vector; weights default to 1)."""
+
+    degree: Annotated[int, Field(ge=1)]
+    knots: list[float]
+    points: list[Vec2]
+    weights: list[Positive] | None = None
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        n, p = len(self.points), self.degree
+        if len(self.knots) != n + p + 1:
+            raise ValueError(f"needs len(knots) = len(points) + degree + 1 = {n + p + 1}, "
+                             f"got {len(self.knots)}")
+        if self.weights is not None and len(self.weights) != n:
+            raise ValueError(f"needs one weight per point ({n}), got {len(self.weights)}")
+        k = self.knots
+        if any(b < a for a, b in zip(k[:-1], k[1:], strict=True)) or k[0] == k[-1]:
+            raise ValueError("knots must be non-decreasing and span a non-empty interval")
+        if len(set(k[: p + 1])) != 1 or len(set(k[-p - 1 :])) != 1:
+            raise ValueError(f"the knot vector must be open (first and last knot repeated "
+                             f"degree + 1 = {p + 1} times)")
+        inner = k[p + 1 : -p - 1]
+        if any(inner.count(u) > p - 1 for u in set(inner)):
+            raise ValueError("interior knots may repeat at most degree - 1 times (a beam "
+                             "axis must be C^1)")
+        return self
+
+
+class CircleSection(_Strict):
+    """Solid circle of ``radius`` [m]."""
+
+    shape: Literal["circle"]
+    radius: Positive
+
+
+class RectangleSection(_Strict):
+    """Rectangle ``width`` (out of plane) x ``height`` (in the plane of bending) [m]."""
+
+    shape: Literal["rectangle"]
+    width: Positive
+    height: Positive
+
+
+class Material(_Strict):
+    """St. Venant-Kirchhoff material: Young's modulus E [Pa], density [kg/m^3]."""
+
+    E: Positive
+    density: Positive
+
+
+class Support(_Strict):
+    """Rotation-free support: pinned fixes the end control point, clamped also the next."""
+
+    at: Literal["start", "end"]
+    type: Literal["pinned", "clamped"]
+
+
+class Beam(_Strict):
+    """One beam: axis geometry, discretisation, section, material, supports."""
+
+    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$")]
+    line: Line | None = None
+    arc: Arc | None = None
+    nurbs: Nurbs | None = None
+    degree: Annotated[int, Field(ge=2, le=10)] = 3
+    elements: Annotated[int, Field(ge=1, le=10_000)] = 10
+    continuity: int | None = None
+    section: Annotated[CircleSection | RectangleSection, Field(discriminator="shape")]
+    material: Material
+    supports: list[Support] = []
+    gravity: bool = True
+    initial_velocity: Vec2 = [0.0, 0.0]
+
+    @field_validator("continuity")
+    @classmethod
+    def _continuity(cls, v: int | None, info: ValidationInfo) -> int | None:
+        p = info.data.get("degree")
+        if v is not None and p is not None and not 1 <= v <= p - 1:
+            raise ValueError(f"must be between 1 and degree - 1 = {p - 1} (rotation-free beams "
+                             f"need C^1), got {v}")
+        return v
+
+    @field_validator("supports")
+    @classmethod
+    def _one_per_end(cls, v: list[Support]) -> list[Support]:
+        ends = [s.at for s in v]
+        if len(set(ends)) != len(ends):
+            raise ValueError("at most one support per end")
+        return v
+
+    @model_validator(mode="after")
+    def _one_geometry(self):
+        given = [k for k in ("line", "arc", "nurbs") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one axis geometry: line, arc or nurbs "
+                             f"(got {', '.join(given) or 'none'})")
+        if self.nurbs is not None and self.nurbs.degree > self.degree:
+            raise ValueError(f"degree {self.degree} is below the nurbs degree "
+                             f"{self.nurbs.degree}")
+        return self
+
+    @property
+    def smoothness(self) -> int:
+        """Continuity between elements (default: degree - 1, the smoothest)."""
+        return self.degree - 1 if self.continuity is None else self.continuity
+
+
+class Load(_Strict):
+    """Dead point force [N] and moment [N m] (counter-clockwise positive) on a beam."""
+
+    beam: str
+    at: Any
+    force: Vec2 = [0.0, 0.0]
+    moment: float = 0.0
+
+    _at = field_validator("at")(_check_at)
+
+
+class Analysis(_Strict):
+    """Kind of analysis and its parameters."""
+
+    kind: Literal["static", "dynamic"]
+    load_steps: Annotated[int, Field(ge=1)] = 10
+    t_end: Positive | None = None
+    dt: Positive | None = None
+    alpha: Annotated[float, Field(ge=-1.0 / 3.0, le=0.0)] = 0.0
+    gravity: Vec2 = [0.0, 0.0]
+
+    @model_validator(mode="after")
+    def _dynamic_needs_time(self):
+        if self.kind == "dynamic":
+            if self.t_end is None or self.dt is None:
+                raise ValueError('kind = "dynamic" needs t_end and dt')
+            if self.dt > self.t_end:
+                raise ValueError(f"dt = {self.dt} exceeds t_end = {self.t_end}")
+        return self
+
+
+class Contact(_Strict):
+    """Beam-to-beam contact (Sec. 2 of the paper)."""
+
+    model: Literal["none", "ipip", "cg"] = "none"
+    segments_per_element: Annotated[int, Field(ge=1)] = 20
+    penalty: Positive = 1.0e6
+    exponent: Annotated[float, Field(gt=3.5)] = 12.0
+    k: Positive = 5.0e-25
+    densities: Annotated[list[Positive], Field(min_length=2, max_length=2)] = [1.0, 1.0]
+    cutoff: Positive = 0.3
+
+
+class Solver(_Strict):
+    """Newton-Raphson and step control.
+
+    rtol: residual reduction ||r|| <= rtol ||r_0||; utol: increment ||du||_inf <= utol L
+    (L the longest beam); max_cutbacks: step halvings before giving up.
+    """
+
+    max_iterations: Annotated[int, Field(ge=1, le=500)] = 25
+    rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-9
+    utol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-11
+    max_cutbacks: Annotated[int, Field(ge=0, le=60)] = 12
+
+
+class OutputPoint(_Strict):
+    """A point followed in history.csv."""
+
+    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_]+$")]
+    beam: str
+    at: Any
+
+    _at = field_validator("at")(_check_at)
+
+
+class Output(_Strict):
+    """What is written: followed points, VTU cadence and polyline resolution."""
+
+    points: list[OutputPoint] = []
+    vtk_every: Annotated[int, Field(ge=1)] = 1
+    samples_per_element: Annotated[int, Field(ge=1, le=200)] = 8
+
+
+class Case(_Strict):
+    """A whole case file."""
+
+    title: str = ""
+    analysis: Analysis
+    beams: Annotated[list[Beam], Field(min_length=1)]
+    loads: list[Load] = []
+    contact: Contact = Contact()
+    solver: Solver = Solver()
+    output: Output = Output()
+
+    def beam_index(self, name: str) -> int:
+        """Index of the beam called ``name``."""
+        return [b.name for b in self.beams].index(name)
+
+
+def _key_path(loc: tuple, raw: dict) -> str:
+    parts: list[str] = []
+    node: Any = raw
+    for item in loc:
+        if isinstance(item, int):
+            label = f"[{item}]"
+            if isinstance(node, list) and item < len(node):
+                node = node[item]
+                if isinstance(node, dict) and isinstance(node.get("name"), str):
+                    label += f" ({node['name']})"
+            parts.append(label)
+            continue
+        if isinstance(node, dict) and item in node:
+            node = node[item]
+        elif item in ("circle", "rectangle"):  # discriminated-union tag, not a key
+            continue
+        parts.append(("." if parts else "") + str(item))
+    return "".join(parts) or "case"
+
+
+def _describe(err: dict, raw: dict) -> str:
+    path = _key_path(tuple(err["loc"]), raw)
+    kind = err["type"]
+    if kind == "missing":
+        return f"{path}: required key is missing"
+    if kind == "extra_forbidden":
+        return f"{path}: unknown key"
+    msg = err["msg"].removeprefix("Value error, ")
+    msg = msg.replace("Input should be", "must be")
+    return f"{path}: {msg}, got {err['input']!r}" if "got" not in msg else f"{path}: {msg}"
+
+
+def parse_case(raw: dict) -> Case:
+    """Validate a case given as a dict (from TOML); raise CaseError naming the key."""
+    try:
+        case = Case.model_validate(raw)
+    except ValidationError as exc:
+        errors = exc.errors()
+        more = f" (and {len(errors) - 1} more problem(s))" if len(errors) > 1 else ""
+        raise CaseError(_describe(errors[0], raw) + more) from None
+    _check_references(case)
+    return case
+
+
+def _check_references(case: Case) -> None:
+    names = [b.name for b in case.beams]
+    for i, name in enumerate(names):
+        if names.count(name) > 1:
+            raise CaseError(f"beams[{i}].name: duplicate beam name {name!r}")
+    known = ", ".join(names)
+    for group, items in (("loads", case.loads), ("output.points", case.output.points)):
+        for i, item in enumerate(items):
+            if item.beam not in names:
+                raise CaseError(f"{group}[{i}].beam: unknown beam {item.beam!r} "
+                                f"(beams are: {known})")
+    point_names = [p.name for p in case.output.points]
+    for i, name in enumerate(point_names):
+        if point_names.count(name) > 1:
+            raise CaseError(f"output.points[{i}].name: duplicate point name {name!r}")
+    for i, b in enumerate(case.beams):
+        r = b.section.radius if b.section.shape == "circle" else 0.5 * b.section.height
+        if b.arc is not None and r >= b.arc.radius:
+            raise CaseError(f"beams[{i}] ({b.name}).section: half-depth {r} must be smaller "
+                            f"than the arc radius {b.arc.radius}")
+
+
+def load_case(path: str | Path) -> tuple[Case, str]:
+    """Read and validate a TOML case file; returns the case and the file's text."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise CaseError(f"{path}: cannot read the case file ({exc.strerror})") from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(f"{path}: invalid TOML: {exc}") from None
+    return parse_case(raw), text

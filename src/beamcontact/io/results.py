@@ -1,0 +1,109 @@
+"""Results written while the run goes: history.csv, summary.json, results.h5.
+
+Every row and state is flushed when written, so a crash or Ctrl-C keeps everything up to
+the last accepted step.
+"""
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+
+class HistoryWriter:
+    """history.csv: one row per accepted step, flushed at once."""
+
+    def __init__(self, path: Path, columns: list[str]):
+        self.columns = columns
+        self._file = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
+        self._csv = csv.writer(self._file)
+        self._csv.writerow(columns)
+        self._file.flush()
+        self.rows: list[dict] = []
+
+    def write(self, row: dict) -> None:
+        """Append one row; missing columns are an error (the header is fixed)."""
+        self._csv.writerow([_fmt(row[c]) for c in self.columns])
+        self._file.flush()
+        self.rows.append(row)
+
+    def close(self) -> None:
+        """Close the file."""
+        self._file.close()
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float | np.floating):
+        return repr(float(v))
+    return str(v)
+
+
+def read_history(path: Path) -> dict[str, np.ndarray]:
+    """history.csv as a dict of float columns."""
+    data = np.genfromtxt(path, delimiter=",", names=True, dtype=float, ndmin=1)
+    return {name: np.atleast_1d(data[name]) for name in data.dtype.names}
+
+
+def write_summary(path: Path, summary: dict) -> None:
+    """summary.json (NaN and infinities become null)."""
+
+    def clean(v):
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, list | tuple):
+            return [clean(x) for x in v]
+        if isinstance(v, float | np.floating):
+            return float(v) if math.isfinite(v) else None
+        if isinstance(v, np.integer):
+            return int(v)
+        return v
+
+    path.write_text(json.dumps(clean(summary), indent=2) + "\n", encoding="utf-8")
+
+
+class StateWriter:
+    """results.h5: the model (knots, weights, reference points) and every accepted state.
+
+    Layout: ``/model/<beam>/{knots, weights, reference_points}`` with attrs degree and
+    offset; ``/states/{step, parameter, u}`` growing along the first axis (``parameter`` is
+    the load factor in statics and the time in dynamics); root attrs ``case_toml``.
+    """
+
+    def __init__(self, path: Path, case_text: str, beams, n_dof: int, parameter_name: str):
+        self._h5 = h5py.File(path, "w")
+        self._h5.attrs["case_toml"] = case_text
+        self._h5.attrs["parameter"] = parameter_name
+        grp = self._h5.create_group("model")
+        for b in beams:
+            g = grp.create_group(b.name)
+            g.attrs["degree"] = b.curve.degree
+            g.attrs["offset"] = b.offset
+            g["knots"] = b.curve.knots
+            g["weights"] = b.curve.weights
+            g["reference_points"] = b.curve.points
+        st = self._h5.create_group("states")
+        st.create_dataset("step", (0,), maxshape=(None,), dtype="i8")
+        st.create_dataset("parameter", (0,), maxshape=(None,), dtype="f8")
+        st.create_dataset("u", (0, n_dof), maxshape=(None, n_dof), dtype="f8",
+                          chunks=(1, n_dof))
+        self._h5.flush()
+
+    def write(self, step: int, parameter: float, u: np.ndarray, **extra: np.ndarray) -> None:
+        """Append one state; ``extra`` arrays (velocities, ...) get datasets of their own."""
+        st = self._h5["states"]
+        n = st["step"].shape[0]
+        for name, value in (("step", step), ("parameter", parameter), ("u", u), *extra.items()):
+            value = np.asarray(value, dtype=float if name != "step" else np.int64)
+            if name not in st:
+                st.create_dataset(name, (0, *value.shape), maxshape=(None, *value.shape),
+                                  dtype=value.dtype)
+            st[name].resize(n + 1, axis=0)
+            st[name][n] = value
+        self._h5.flush()
+
+    def close(self) -> None:
+        """Close the file."""
+        self._h5.close()

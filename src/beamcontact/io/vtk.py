@@ -1,0 +1,58 @@
+"""ParaView output: one VTU per snapshot (beams as polylines) and a PVD time series.
+
+Point data: ``displacement`` (3-vector, z = 0), ``radius`` (section half-depth, for the
+Tube filter); cell data: ``beam`` (index of the beam in the case).
+"""
+
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import meshio
+import numpy as np
+
+
+class VtkSeries:
+    """Writes ``vtk/beams_NNNNN.vtu`` and keeps ``beams.pvd`` valid after every snapshot."""
+
+    def __init__(self, out_dir: Path, polylines: list[np.ndarray], radii: list[float],
+                 x_ref: np.ndarray, offsets: list[int], n_cps: list[int]):
+        self.out_dir = out_dir
+        (out_dir / "vtk").mkdir(parents=True, exist_ok=True)
+        self._maps = polylines
+        self._slices = [slice(o, o + n) for o, n in zip(offsets, n_cps, strict=True)]
+        self._x_ref = x_ref
+        self._radii = radii
+        self._entries: list[tuple[float, str]] = []
+        cells, start = [], 0
+        beam_ids = []
+        for b, m in enumerate(polylines):
+            n = m.shape[0]
+            cells.append(np.column_stack([np.arange(start, start + n - 1),
+                                          np.arange(start + 1, start + n)]))
+            beam_ids.append(np.full(n - 1, b))
+            start += n
+        self._cells = [("line", np.concatenate(cells))]
+        self._beam_ids = np.concatenate(beam_ids)
+        self._ref_pts = self._points(x_ref)
+
+    def _points(self, x: np.ndarray) -> np.ndarray:
+        pts = np.concatenate([m @ x[s] for m, s in zip(self._maps, self._slices, strict=True)])
+        return np.column_stack([pts, np.zeros(len(pts))])
+
+    def write(self, parameter: float, x: np.ndarray) -> None:
+        """Snapshot of the current control points x (n_cp, 2) at time/load ``parameter``."""
+        pts = self._points(x)
+        radius = np.concatenate([np.full(m.shape[0], r)
+                                 for m, r in zip(self._maps, self._radii, strict=True)])
+        name = f"vtk/beams_{len(self._entries):05d}.vtu"
+        meshio.write(self.out_dir / name, meshio.Mesh(
+            pts, self._cells, point_data={"displacement": pts - self._ref_pts, "radius": radius},
+            cell_data={"beam": [self._beam_ids]}))
+        self._entries.append((parameter, name))
+        lines = ['<?xml version="1.0"?>',
+                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+                 "  <Collection>"]
+        lines += [f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(f)}/>'
+                  for t, f in self._entries]
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        (self.out_dir / "beams.pvd").write_text("\n".join(lines), encoding="utf-8")

@@ -1,0 +1,74 @@
+"""Newton-Raphson with the consistent (AD) tangent, as one ``lax.while_loop``.
+
+Convergence (both measured on free dofs):
+    ||r_k|| <= rtol * ||r_0|| + atol     or     ||du_k||_inf <= utol * length,
+where r_0 is the residual at the predictor. A NaN or the iteration limit ends the loop
+with ``converged = False``; the caller (load stepping, time stepping) decides what to do.
+"""
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Newton settings; ``max_iterations`` is static, the tolerances are plain floats."""
+
+    max_iterations: int = 25
+    rtol: float = 1e-9
+    atol: float = 0.0
+    utol: float = 1e-11
+    length: float = 1.0
+
+
+class NewtonResult:
+    """Solution, iterations, convergence flag and final norms (JAX arrays)."""
+
+    def __init__(self, u, iterations, converged, residual_norm, initial_residual_norm):
+        self.u = u
+        self.iterations = iterations
+        self.converged = converged
+        self.residual_norm = residual_norm
+        self.initial_residual_norm = initial_residual_norm
+
+
+jax.tree_util.register_pytree_node(
+    NewtonResult,
+    lambda r: ((r.u, r.iterations, r.converged, r.residual_norm, r.initial_residual_norm), None),
+    lambda _, c: NewtonResult(*c),
+)
+
+
+def newton(residual_tangent, u0, opts: NewtonOptions, tolerances) -> NewtonResult:
+    """Solve residual(u) = 0 from u0.
+
+    Args:
+        residual_tangent: u -> (r, K) with supports already applied.
+        u0: predictor.
+        opts: the static iteration limit.
+        tolerances: array (rtol, atol, utol * length), traced so no recompilation.
+    """
+    rtol, atol, utol_abs = tolerances[0], tolerances[1], tolerances[2]
+    r0, K0 = residual_tangent(u0)
+    norm0 = jnp.linalg.norm(r0)
+
+    def cond(state):
+        _, _, _, k, done, failed, _ = state
+        return (~done) & (~failed) & (k < opts.max_iterations)
+
+    def body(state):
+        u, r, K, k, _, _, _ = state
+        du = jnp.linalg.solve(K, -r)
+        u = u + du
+        r, K = residual_tangent(u)
+        rn = jnp.linalg.norm(r)
+        done = (rn <= rtol * norm0 + atol) | (jnp.max(jnp.abs(du)) <= utol_abs)
+        failed = ~jnp.isfinite(rn) | ~jnp.all(jnp.isfinite(du))
+        return u, r, K, k + 1, done & ~failed, failed, rn
+
+    done0 = norm0 <= atol
+    state = (u0, r0, K0, jnp.asarray(0), done0, ~jnp.isfinite(norm0), norm0)
+    u, _, _, k, done, _, rn = jax.lax.while_loop(cond, body, state)
+    return NewtonResult(u, k, done, rn, norm0)

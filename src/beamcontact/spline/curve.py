@@ -1,0 +1,154 @@
+"""Planar NURBS curves (paper eq. 40; P&T Ch. 4) and exact constructions of lines and arcs."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from beamcontact.spline.basis import basis_derivatives, find_span, nurbs_basis_derivatives
+
+
+@dataclass(frozen=True, eq=False)
+class NurbsCurve:
+    """A planar NURBS curve on the parameter domain [0, 1].
+
+    Attributes:
+        degree: polynomial degree p.
+        knots: open knot vector, shape (n + p + 1,), from 0 to 1.
+        points: Cartesian control points, shape (n, 2).
+        weights: positive-denominator weights, shape (n,).
+    """
+
+    degree: int
+    knots: np.ndarray
+    points: np.ndarray
+    weights: np.ndarray
+
+    def __post_init__(self) -> None:
+        n = len(self.points)
+        if len(self.knots) != n + self.degree + 1 or len(self.weights) != n:
+            raise ValueError(f"inconsistent NURBS: {n} points, {len(self.weights)} weights, "
+                             f"{len(self.knots)} knots for degree {self.degree} "
+                             f"(need points + degree + 1 knots)")
+
+    @property
+    def n_points(self) -> int:
+        """Number of control points."""
+        return len(self.points)
+
+    def homogeneous(self) -> np.ndarray:
+        """Weighted control points (w x, w y, w), shape (n, 3)."""
+        return np.column_stack([self.points * self.weights[:, None], self.weights])
+
+    @staticmethod
+    def from_homogeneous(degree: int, knots: np.ndarray, pw: np.ndarray) -> "NurbsCurve":
+        """Curve from weighted control points (w x, w y, w)."""
+        w = pw[:, 2]
+        return NurbsCurve(degree, np.asarray(knots, float), pw[:, :2] / w[:, None], w.copy())
+
+    def basis_matrix(self, u: np.ndarray, nders: int = 0) -> np.ndarray:
+        """Dense rational basis (and derivatives) at parameters u: shape (nders+1, len(u), n)."""
+        u = np.atleast_1d(np.asarray(u, float))
+        out = np.zeros((3, len(u), self.n_points))
+        for k, uk in enumerate(u):
+            first, ders = nurbs_basis_derivatives(self.knots, self.degree, self.weights, uk)
+            out[:, k, first : first + self.degree + 1] = ders
+        return out[: nders + 1]
+
+    def evaluate(self, u: np.ndarray, nders: int = 0) -> np.ndarray:
+        """Points and parametric derivatives: shape (nders+1, len(u), 2)."""
+        return self.basis_matrix(u, nders) @ self.points
+
+    def evaluate_homogeneous(self, u: np.ndarray) -> np.ndarray:
+        """The polynomial homogeneous curve C^w(u), shape (len(u), 3) (P&T eq. 4.5)."""
+        u = np.atleast_1d(np.asarray(u, float))
+        pw = self.homogeneous()
+        out = np.zeros((len(u), 3))
+        for k, uk in enumerate(u):
+            span = find_span(self.knots, self.degree, uk)
+            N = basis_derivatives(self.knots, self.degree, span, uk, 0)[0]
+            out[k] = N @ pw[span - self.degree : span + 1]
+        return out
+
+    def arc_length(self, u: float = 1.0) -> float:
+        """Arc length from parameter 0 to u."""
+        grid, cumulative = self._length_table()
+        k = int(np.clip(np.searchsorted(grid, u, side="right") - 1, 0, len(grid) - 1))
+        return float(cumulative[k] + self._length_between(grid[k], u))
+
+    def _length_between(self, a: float, b: float, n_gauss: int = 12) -> float:
+        if b <= a:
+            return 0.0
+        x, w = np.polynomial.legendre.leggauss(n_gauss)
+        uq = 0.5 * (b - a) * x + 0.5 * (a + b)
+        return float(0.5 * (b - a) * (np.linalg.norm(self.evaluate(uq, 1)[1], axis=1) @ w))
+
+    def _length_table(self, subdivisions: int = 32, n_gauss: int = 12):
+        """Cumulative arc length on a fine grid (every knot span cut ``subdivisions`` times).
+
+        Composite Gauss-Legendre resolves the strongly varying speed of long single-segment
+        arcs.
+        """
+        breaks = np.unique(self.knots)
+        grid = np.unique(np.concatenate([np.linspace(a, b, subdivisions + 1)
+                                         for a, b in zip(breaks[:-1], breaks[1:], strict=True)]))
+        x, w = np.polynomial.legendre.leggauss(n_gauss)
+        a, b = grid[:-1], grid[1:]
+        uq = (0.5 * (b - a)[:, None] * x + 0.5 * (a + b)[:, None]).ravel()
+        speed = np.linalg.norm(self.evaluate(uq, 1)[1], axis=1).reshape(len(a), -1)
+        return grid, np.concatenate([[0.0], np.cumsum(0.5 * (b - a) * (speed @ w))])
+
+    def parameters_at_lengths(self, fractions) -> np.ndarray:
+        """Parameters u whose arc length from the start is ``fractions`` of the total."""
+        from scipy.optimize import brentq
+
+        grid, cumulative = self._length_table()
+        out = []
+        for f in np.atleast_1d(np.asarray(fractions, float)):
+            if f <= 0.0 or f >= 1.0:
+                out.append(float(np.clip(f, 0.0, 1.0)))
+                continue
+            target = f * cumulative[-1]
+            k = int(np.clip(np.searchsorted(cumulative, target) - 1, 0, len(grid) - 2))
+            a, b, rest = grid[k], grid[k + 1], target - cumulative[k]
+            span = cumulative[k + 1] - cumulative[k]
+            if rest <= 1e-14 * span or rest >= (1.0 - 1e-14) * span:  # on a grid point
+                out.append(float(a if rest < 0.5 * span else b))
+                continue
+            out.append(float(brentq(lambda u, a=a, rest=rest: self._length_between(a, u) - rest,
+                                    a, b, xtol=1e-15, rtol=4 * np.finfo(float).eps)))
+        return np.array(out)
+
+
+def line(start, end) -> NurbsCurve:
+    """Straight segment as a degree-1 B-spline."""
+    pts = np.array([start, end], dtype=float)
+    return NurbsCurve(1, np.array([0.0, 0.0, 1.0, 1.0]), pts, np.ones(2))
+
+
+def arc(center, radius: float, start_angle: float, end_angle: float) -> NurbsCurve:
+    """Exact circular arc as one rational quadratic segment (P&T Sec. 7.3).
+
+    The middle weight is w1 = cos(theta/2) for the sweep theta = end - start. The weighted
+    middle point w1 * P1 = w1 * c + R * e_mid stays finite for every |theta| < 2 pi, so arcs
+    longer than a half circle (w1 <= 0) are exact too: the denominator
+    (1-u)^2 + 2 w1 u (1-u) + u^2 >= (1 + w1)/2 > 0 on [0, 1]. A single segment keeps the
+    parametrisation C-infinity, which the rotation-free beam needs (no G1-only joints).
+    """
+    sweep = end_angle - start_angle
+    if not 0.0 < abs(sweep) < 2.0 * np.pi:
+        raise ValueError(f"arc sweep must satisfy 0 < |end_angle - start_angle| < 2 pi, "
+                         f"got {sweep}")
+    c = np.asarray(center, float)
+    mid = 0.5 * (start_angle + end_angle)
+    w1 = np.cos(0.5 * sweep)
+    p0 = c + radius * np.array([np.cos(start_angle), np.sin(start_angle)])
+    p2 = c + radius * np.array([np.cos(end_angle), np.sin(end_angle)])
+    pw1 = np.concatenate([w1 * c + radius * np.array([np.cos(mid), np.sin(mid)]), [w1]])
+    pw = np.array([[*p0, 1.0], pw1, [*p2, 1.0]])
+    if abs(w1) < 1e-3:
+        # P1 would sit near infinity; elevate once so every control point is finite.
+        from beamcontact.spline.refine import elevate_degree_homogeneous
+
+        knots, pw = elevate_degree_homogeneous(2, np.array([0, 0, 0, 1, 1, 1.0]), pw, 1)
+        return NurbsCurve.from_homogeneous(3, knots, pw)
+    return NurbsCurve.from_homogeneous(2, np.array([0, 0, 0, 1, 1, 1.0]), pw)

@@ -1,0 +1,1 @@
+"""Static equilibrium by load stepping."""

@@ -1,0 +1,134 @@
+"""Load stepping with Newton-Raphson and automatic cut-back.
+
+The load factor lam runs from 0 to 1 in ``load_steps`` equal increments. A failed Newton
+solve restores the last converged state and halves the increment, up to ``max_cutbacks``
+times in a row; after a success the increment grows back (doubling) to the nominal one.
+Every converged step is handed to ``on_step`` at once, so a later failure loses nothing.
+"""
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beamcontact.assembly.model import LoadState, Model, initial_load_state
+from beamcontact.assembly.system import apply_supports, energies, potential_residual_tangent
+from beamcontact.beam.loads import tangent_rotation
+from beamcontact.solvers.newton import NewtonOptions, newton
+
+
+@dataclass(frozen=True)
+class StaticStep:
+    """One converged load step."""
+
+    step: int
+    load_factor: float
+    u: np.ndarray
+    iterations: int
+    cutbacks: int
+    energies: dict
+
+
+@dataclass(frozen=True)
+class StaticResult:
+    """Outcome of a static analysis."""
+
+    status: str  # "completed" | "failed"
+    message: str
+    steps: int
+    iterations: int
+    cutbacks: int
+    load_factor: float
+    u: np.ndarray
+    wall_time: float
+    compile_time: float
+
+
+def _update_load_state(model: Model, u: jax.Array, state: LoadState) -> LoadState:
+    x = model.x_ref + u.reshape(-1, 2)
+    t = jnp.einsum("lk,lkd->ld", model.loads.dR, x[model.loads.conn])
+    theta = jax.vmap(tangent_rotation)(t, state.theta, state.tangent)
+    return LoadState(theta=theta, tangent=t)
+
+
+@jax.jit(static_argnames=("max_iterations",))
+def _solve_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iterations):
+    def residual_tangent(u):
+        r, K = potential_residual_tangent(u, model, lam, load_state)
+        return apply_supports(r, K, model.free)
+
+    return newton(residual_tangent, u0, NewtonOptions(max_iterations), tolerances)
+
+
+_energies = jax.jit(energies)
+_update = jax.jit(_update_load_state)
+
+
+def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: float,
+                 max_cutbacks: int = 12,
+                 on_step: Callable[[StaticStep], None] | None = None) -> StaticResult:
+    """Ramp the loads from 0 to 1 and return the last converged state.
+
+    Args:
+        model: the discrete model.
+        load_steps: nominal number of equal load increments.
+        options: Newton settings.
+        length: length scale of the increment tolerance.
+        max_cutbacks: successive halvings of the increment allowed before giving up.
+        on_step: called with every converged step (write results there).
+    """
+    start = time.perf_counter()
+    tol = jnp.array([options.rtol, options.atol, options.utol * length])
+    u = jnp.zeros(model.n_dof)
+    state = initial_load_state(model)
+    nominal = 1.0 / load_steps
+    lam, dlam = 0.0, nominal
+    steps = iterations = cutbacks = 0
+    consecutive = 0
+    compile_time = 0.0
+    if on_step is not None:
+        on_step(StaticStep(0, 0.0, np.zeros(model.n_dof), 0, 0,
+                           _as_floats(_energies(u, model, 0.0, state))))
+    while lam < 1.0 - 1e-12:
+        dl = min(dlam, 1.0 - lam)
+        t0 = time.perf_counter()
+        res = _solve_step(u, model, jnp.asarray(lam + dl), state, tol,
+                          max_iterations=options.max_iterations)
+        converged = bool(res.converged)
+        if steps == 0 and cutbacks == 0:
+            compile_time = time.perf_counter() - t0  # first call: compile + one solve
+        iterations += int(res.iterations)
+        if not converged:
+            cutbacks += 1
+            consecutive += 1
+            if consecutive > max_cutbacks:
+                return StaticResult(
+                    "failed",
+                    f"Newton did not converge at load factor {lam + dl:.6g} "
+                    f"({int(res.iterations)} iterations, residual {float(res.residual_norm):.3e}"
+                    f" from {float(res.initial_residual_norm):.3e}) after {consecutive - 1} "
+                    f"successive halvings of the load increment (now {dl:.3g}); the last "
+                    f"converged load factor is {lam:.6g}",
+                    steps, iterations, cutbacks, lam, np.asarray(u),
+                    time.perf_counter() - start, compile_time)
+            dlam = 0.5 * dl
+            continue
+        consecutive = 0
+        u = res.u
+        lam += dl
+        steps += 1
+        state = _update(model, u, state)
+        if on_step is not None:
+            on_step(StaticStep(steps, lam, np.asarray(u), int(res.iterations), cutbacks,
+                               _as_floats(_energies(u, model, lam, state))))
+        dlam = min(2.0 * dlam, nominal)
+    return StaticResult("completed", f"reached load factor 1 in {steps} steps", steps,
+                        iterations, cutbacks, lam, np.asarray(u),
+                        time.perf_counter() - start, compile_time)
+
+
+def _as_floats(d: dict) -> dict:
+    return {k: float(v) for k, v in d.items()}
