@@ -1,15 +1,20 @@
-"""Float64 switch: checked by the library, set only by entry points (CLI, examples, tests)."""
+"""Float64 switch: checked by the library, set only by entry points (CLI, examples, tests).
 
-import jax
+JAX is imported lazily so that validating a case (``beamcontact check``) stays fast.
+"""
 
 
 def enable_x64() -> None:
     """Make JAX compute in float64. Call before any JAX array is created."""
+    import jax
+
     jax.config.update("jax_enable_x64", True)
 
 
 def require_x64() -> None:
     """Raise a clear error when JAX would silently compute in float32."""
+    import jax
+
     if not jax.config.read("jax_enable_x64"):
         raise RuntimeError(
             "beamcontact needs float64: set JAX_ENABLE_X64=1 or call "

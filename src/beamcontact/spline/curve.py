@@ -1,6 +1,7 @@
 """Planar NURBS curves (paper eq. 40; P&T Ch. 4) and exact constructions of lines and arcs."""
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -71,7 +72,7 @@ class NurbsCurve:
 
     def arc_length(self, u: float = 1.0) -> float:
         """Arc length from parameter 0 to u."""
-        grid, cumulative = self._length_table()
+        grid, cumulative = self._length_table
         k = int(np.clip(np.searchsorted(grid, u, side="right") - 1, 0, len(grid) - 1))
         return float(cumulative[k] + self._length_between(grid[k], u))
 
@@ -82,12 +83,14 @@ class NurbsCurve:
         uq = 0.5 * (b - a) * x + 0.5 * (a + b)
         return float(0.5 * (b - a) * (np.linalg.norm(self.evaluate(uq, 1)[1], axis=1) @ w))
 
-    def _length_table(self, subdivisions: int = 32, n_gauss: int = 12):
-        """Cumulative arc length on a fine grid (every knot span cut ``subdivisions`` times).
+    @cached_property
+    def _length_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """Cumulative arc length on a fine grid (every knot span cut 32 times), cached.
 
         Composite Gauss-Legendre resolves the strongly varying speed of long single-segment
         arcs.
         """
+        subdivisions, n_gauss = 32, 12
         breaks = np.unique(self.knots)
         grid = np.unique(np.concatenate([np.linspace(a, b, subdivisions + 1)
                                          for a, b in zip(breaks[:-1], breaks[1:], strict=True)]))
@@ -101,7 +104,7 @@ class NurbsCurve:
         """Parameters u whose arc length from the start is ``fractions`` of the total."""
         from scipy.optimize import brentq
 
-        grid, cumulative = self._length_table()
+        grid, cumulative = self._length_table
         out = []
         for f in np.atleast_1d(np.asarray(fractions, float)):
             if f <= 0.0 or f >= 1.0:
@@ -133,6 +136,8 @@ def arc(center, radius: float, start_angle: float, end_angle: float) -> NurbsCur
     longer than a half circle (w1 <= 0) are exact too: the denominator
     (1-u)^2 + 2 w1 u (1-u) + u^2 >= (1 + w1)/2 > 0 on [0, 1]. A single segment keeps the
     parametrisation C-infinity, which the rotation-free beam needs (no G1-only joints).
+    Round-off grows like 1 / (1 + w1) as the sweep approaches 2 pi (the denominator nearly
+    vanishes at mid-parameter), so nearly closed rings lose a few digits.
     """
     sweep = end_angle - start_angle
     if not 0.0 < abs(sweep) < 2.0 * np.pi:

@@ -1,0 +1,5 @@
+"""Test configuration: float64 everywhere (as the CLI sets it)."""
+
+import beamcontact
+
+beamcontact.enable_x64()

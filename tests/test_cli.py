@@ -1,0 +1,177 @@
+"""Command line: the bundled example end to end, output contract, and rejection of bad input."""
+
+import copy
+import json
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from beamcontact.cli import bundled_case
+from beamcontact.io.results import read_history
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLE = REPO / "examples" / "cantilever_end_moment" / "case.toml"
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "beamcontact.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+def _write_case(path: Path, raw: dict) -> Path:
+    path.write_text(_to_toml(raw), encoding="utf-8")
+    return path
+
+
+def _to_toml(raw: dict) -> str:
+    """Minimal TOML writer for the test cases (tables, arrays of tables, inline values)."""
+
+    def value(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
+        if isinstance(v, list):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        return repr(v)
+
+    lines = []
+    scalars = {k: v for k, v in raw.items() if not isinstance(v, dict | list)
+               or (isinstance(v, list) and not (v and isinstance(v[0], dict)))}
+    lines += [f"{k} = {value(v)}" for k, v in scalars.items()]
+    for k, v in raw.items():
+        if isinstance(v, dict):
+            nested = {kk: vv for kk, vv in v.items() if isinstance(vv, list) and vv
+                      and isinstance(vv[0], dict)}
+            lines.append(f"[{k}]")
+            lines += [f"{kk} = {value(vv)}" for kk, vv in v.items() if kk not in nested]
+            for kk, items in nested.items():
+                for item in items:
+                    lines.append(f"[[{k}.{kk}]]")
+                    lines += [f"{a} = {value(b)}" for a, b in item.items()]
+        elif isinstance(v, list) and v and isinstance(v[0], dict):
+            for item in v:
+                lines.append(f"[[{k}]]")
+                lines += [f"{a} = {value(b)}" for a, b in item.items()]
+    return "\n".join(lines) + "\n"
+
+
+def test_bundled_case_is_the_example():
+    assert bundled_case().read_text() == EXAMPLE.read_text()
+
+
+def test_run_end_moment_example_closes_circle(tmp_path):
+    """Acceptance: a slender cubic cantilever under M = 2 pi EI/L; tip back within 0.2 % L."""
+    out = tmp_path / "out"
+    proc = _cli("run", EXAMPLE, "--out", out, "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    h = read_history(out / "history.csv")
+    assert h["load_factor"][-1] == pytest.approx(1.0)
+    assert np.hypot(h["tip_x"][-1], h["tip_y"][-1]) < 2e-3 * 1.0
+    # strain energy of the inextensible circle M^2 L / (2 EI) = pi M L; the Green-Lagrange
+    # fibre strain adds O((k a)^2) = (2 pi 0.005)^2 = 1e-3 relative (test_statics.py has the
+    # exact solution of the full model)
+    M = 2 * np.pi * 1.0e9 * np.pi * 0.005**4 / 4
+    assert h["E_strain"][-1] == pytest.approx(np.pi * M, rel=2e-3)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed"
+    assert summary["steps"] == 10 and summary["newton_iterations"] == h["newton_iters"].sum()
+    assert summary["wall_time_s"] > 0 and summary["compile_time_s"] > 0
+    vtus = sorted((out / "vtk").glob("*.vtu"))
+    assert len(vtus) == 11 and (out / "beams.pvd").read_text().count("<DataSet") == 11
+    assert (out / "plots" / "shapes.png").stat().st_size > 0
+    with h5py.File(out / "results.h5") as f:
+        assert f["states/u"].shape == (11, 38)
+        np.testing.assert_allclose(f["states/parameter"][:], h["load_factor"])
+        assert "cantilever" in f["model"]
+
+
+def test_check_accepts_valid_case():
+    proc = _cli("check", EXAMPLE)
+    assert proc.returncode == 0 and "valid" in proc.stdout
+
+
+BASE = tomllib.loads(EXAMPLE.read_text())
+
+
+def _mutate(path, value):
+    raw = copy.deepcopy(BASE)
+    node = raw
+    for key in path[:-1]:
+        node = node[key]
+    if value is KeyError:
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    return raw
+
+
+BAD = [  # (mutation, key the message must name)
+    ((("beams", 0, "section", "radius"), -0.01), "beams[0] (cantilever).section.radius"),
+    ((("beams", 0, "section", "radius"), 0.0), "beams[0] (cantilever).section.radius"),
+    ((("beams", 0, "material", "E"), -1.0), "beams[0] (cantilever).material.E"),
+    ((("beams", 0, "material", "E"), 0), "beams[0] (cantilever).material.E"),
+    ((("beams", 0, "material", "density"), 0.0), "beams[0] (cantilever).material.density"),
+    ((("beams", 0, "degree"), 1), "beams[0] (cantilever).degree"),
+    ((("beams", 0, "continuity"), 3), "beams[0] (cantilever).continuity"),
+    ((("beams", 0, "continuity"), 0), "beams[0] (cantilever).continuity"),
+    ((("loads", 0, "beam"), "nobody"), "loads[0].beam"),
+    ((("output", "points", 0, "beam"), "nobody"), "output.points[0].beam"),
+    ((("loads", 0, "at"), 1.5), "loads[0].at"),
+    ((("loads", 0, "at"), -0.1), "loads[0].at"),
+    ((("output", "points", 0, "at"), "middle"), "output.points[0] (tip).at"),
+    ((("beams", 0, "material", "density"), KeyError), "beams[0] (cantilever).material.density"),
+    ((("analysis", "kind"), KeyError), "analysis.kind"),
+    ((("beams", 0, "colour"), "red"), "beams[0] (cantilever).colour"),
+    ((("analysis", "steps"), 3), "analysis.steps"),
+    ((("beams", 0, "elements"), "many"), "beams[0] (cantilever).elements"),
+    ((("beams", 0, "gravity"), "yes"), "beams[0] (cantilever).gravity"),
+    ((("beams", 0, "section", "radius"), "thin"), "beams[0] (cantilever).section.radius"),
+    ((("analysis", "load_steps"), 2.5), "analysis.load_steps"),
+    ((("loads", 0, "moment"), [1.0]), "loads[0].moment"),
+]
+
+
+@pytest.mark.parametrize(("mutation", "key"), BAD, ids=[k for _, k in BAD])
+def test_bad_input_is_rejected_naming_the_key(tmp_path, mutation, key):
+    case = _write_case(tmp_path / "bad.toml", _mutate(*mutation))
+    for command in (("check", case), ("run", case, "--out", tmp_path / "o", "--quiet")):
+        proc = _cli(*command)
+        assert proc.returncode == 2, proc.stdout + proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"error: {key}:"), proc.stderr
+        assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "o").exists()  # nothing runs on invalid input
+
+
+def test_unreadable_and_malformed_files(tmp_path):
+    proc = _cli("check", tmp_path / "missing.toml")
+    assert proc.returncode == 2 and "cannot read" in proc.stderr
+    (tmp_path / "bad.toml").write_text("title = \n")
+    proc = _cli("check", tmp_path / "bad.toml")
+    assert proc.returncode == 2 and "invalid TOML" in proc.stderr
+
+
+def test_solver_failure_keeps_results_and_says_why(tmp_path):
+    """A load far beyond what one Newton solve can take with no cut-backs allowed: exit 1,
+    the message says where it stopped, and the converged steps are on disk."""
+    raw = copy.deepcopy(BASE)
+    raw["loads"][0]["moment"] *= 40.0
+    raw["analysis"]["load_steps"] = 4
+    raw["solver"] = {"max_iterations": 4, "max_cutbacks": 1}
+    case = _write_case(tmp_path / "hard.toml", raw)
+    out = tmp_path / "o"
+    proc = _cli("run", case, "--out", out, "--quiet")
+    assert proc.returncode == 1
+    assert "Newton did not converge at load factor" in proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and "last converged load factor" in summary["message"]
+    h = read_history(out / "history.csv")
+    assert len(h["load_factor"]) == summary["steps"] + 1
