@@ -101,8 +101,8 @@ def test_check_accepts_valid_case():
 BASE = tomllib.loads(EXAMPLE.read_text())
 
 
-def _mutate(path, value):
-    raw = copy.deepcopy(BASE)
+def _mutate(path, value, base=BASE):
+    raw = copy.deepcopy(base)
     node = raw
     for key in path[:-1]:
         node = node[key]
@@ -137,6 +137,15 @@ BAD = [  # (mutation, key the message must name)
     ((("analysis", "load_steps"), 2.5), "analysis.load_steps"),
     ((("loads", 0, "moment"), [1.0]), "loads[0].moment"),
 ]
+DYNAMIC = tomllib.loads((REPO / "examples" / "pinned_beam_vibration" / "case.toml").read_text())
+BAD_DYNAMIC = [
+    ((("analysis", "alpha"), 0.1), "analysis.alpha"),
+    ((("analysis", "alpha"), -0.5), "analysis.alpha"),
+    ((("analysis", "dt"), -1e-3), "analysis.dt"),
+    ((("analysis", "t_end"), KeyError), "analysis"),
+    ((("beams", 0, "initial_velocity"), [1.0]), "beams[0] (beam).initial_velocity"),
+    ((("output", "vtk_interval"), 0.0), "output.vtk_interval"),
+]
 
 
 @pytest.mark.parametrize(("mutation", "key"), BAD, ids=[k for _, k in BAD])
@@ -149,6 +158,26 @@ def test_bad_input_is_rejected_naming_the_key(tmp_path, mutation, key):
         assert len(lines) == 1 and lines[0].startswith(f"error: {key}:"), proc.stderr
         assert "Traceback" not in proc.stderr
     assert not (tmp_path / "o").exists()  # nothing runs on invalid input
+
+
+@pytest.mark.parametrize(("mutation", "key"), BAD_DYNAMIC, ids=[k for _, k in BAD_DYNAMIC])
+def test_bad_dynamic_input_is_rejected_naming_the_key(tmp_path, mutation, key):
+    case = _write_case(tmp_path / "bad.toml", _mutate(*mutation, base=DYNAMIC))
+    proc = _cli("check", case)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {key}:"), proc.stderr
+
+
+def test_library_refuses_float32():
+    code = ("import beamcontact, pathlib\n"
+            "from beamcontact.io.case import load_case\n"
+            "from beamcontact.runner import run_case\n"
+            f"case, text = load_case({str(EXAMPLE)!r})\n"
+            "run_case(case, text, pathlib.Path('unused'))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={"PATH": "/usr/bin:/bin", "JAX_ENABLE_X64": "0"})
+    assert proc.returncode != 0 and "beamcontact needs float64" in proc.stderr
 
 
 def test_unreadable_and_malformed_files(tmp_path):

@@ -54,6 +54,9 @@ def run(
     out: Annotated[Path | None, typer.Option(
         "--out", "-o", help="Output folder (default: a new results_<case> folder here).")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+    restart: Annotated[bool, typer.Option(
+        "--restart", help="Continue the dynamic run in --out from its last saved state to "
+        "the case's t_end (only t_end, [solver] and [output] may have changed).")] = False,
 ) -> None:
     """Run a case and write history.csv, summary.json, results.h5, VTU/PVD and plots."""
     import beamcontact
@@ -63,6 +66,8 @@ def run(
     beamcontact.enable_x64()
     case = bundled_case() if case is None else case
     parsed, text = _load(case)
+    if restart and out is None:
+        _fail("--restart needs --out DIR, the folder of the run to continue", 2)
     out = _fresh_dir(case.parent.name if case.name == "case.toml" else case.stem) \
         if out is None else out
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -76,10 +81,11 @@ def run(
             bar.update(task, completed=fraction, info=info)
 
         try:
-            summary = run_case(parsed, text, out, progress)
+            summary = run_case(parsed, text, out, progress, restart=restart)
         except CaseError as exc:
             _fail(str(exc), 2)
         except KeyboardInterrupt:
+            bar.stop()
             _fail(f"interrupted; results up to the last accepted step are in {out}", 130)
     typer.echo(f"{summary['status']}: {summary['message']}")
     typer.echo(f"steps {summary['steps']}, Newton iterations {summary['newton_iterations']}, "

@@ -47,3 +47,20 @@ def plot_point_histories(history: dict[str, np.ndarray], abscissa: str, points: 
     fig.tight_layout()
     fig.savefig(path, dpi=150)
     plt.close(fig)
+
+
+def plot_energies(history: dict[str, np.ndarray], path: Path, title: str = "") -> None:
+    """Kinetic, strain, gravity and total energy against time."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name in ("E_kin", "E_strain", "E_gravity", "E_ext", "E_total"):
+        if name in history and np.any(history[name] != 0.0):
+            ax.plot(history["t"], history[name], lw=2.0 if name == "E_total" else 1.2,
+                    label=name)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("energy [J]")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)

@@ -1,14 +1,17 @@
 """Run a validated case into an output folder (DESIGN.md Sec. 4 results contract).
 
 Writes history.csv, summary.json, results.h5, vtk/*.vtu + beams.pvd and plots/*.png.
-Results are written step by step; on failure everything computed so far is kept and
-summary.json says why the run stopped.
+Results are written step by step; on failure or interruption everything accepted so far
+is kept and summary.json says why the run stopped. Dynamic runs can be continued with
+``restart=True`` from the last state in results.h5.
 """
 
 import time
+import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
+import jax.numpy as jnp
 import numpy as np
 
 from beamcontact import __version__, require_x64
@@ -19,14 +22,26 @@ from beamcontact.assembly.build import (
     point_sampler,
     polyline_matrix,
 )
-from beamcontact.io.case import Case, CaseError, at_fraction
-from beamcontact.io.results import HistoryWriter, StateWriter, read_history, write_summary
+from beamcontact.assembly.model import LoadState, Model, initial_load_state
+from beamcontact.dynamics.driver import DynamicStep, solve_dynamic, uniform_velocities
+from beamcontact.dynamics.hht import DynState, initial_state
+from beamcontact.io.case import Case, CaseError, at_fraction, parse_case
+from beamcontact.io.results import (
+    HistoryWriter,
+    StateWriter,
+    read_history,
+    read_last_state,
+    write_summary,
+)
 from beamcontact.io.vtk import VtkSeries
-from beamcontact.plot import plot_point_histories, plot_shapes
+from beamcontact.plot import plot_energies, plot_point_histories, plot_shapes
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import StaticStep, solve_static
 
 Progress = Callable[[float, str], None]
+
+ENERGY_COLUMNS = ["E_strain", "E_gravity", "E_ext", "E_total"]
+DYNAMIC_COLUMNS = ["E_kin", *ENERGY_COLUMNS, "p_x", "p_y"]  # then newton_iters, cutbacks
 
 
 class OutputPoints:
@@ -52,6 +67,82 @@ class OutputPoints:
         return row
 
 
+class _Outputs:
+    """The writers of one run and the shape plots, shared by statics and dynamics."""
+
+    def __init__(self, case: Case, case_text: str, disc: Discretization, model: Model,
+                 out_dir: Path, abscissa: str, extra_columns: list[str],
+                 resume: tuple[int, float] | None = None):
+        self.case, self.disc, self.out_dir = case, disc, out_dir
+        self.x_ref = np.asarray(model.x_ref)
+        self.points = OutputPoints(case, disc, self.x_ref)
+        self.abscissa = abscissa
+        self.columns = ["step", abscissa, *self.points.columns(), *extra_columns,
+                        "newton_iters", "cutbacks"] + (["dt"] if abscissa == "t" else [])
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "plots").mkdir(exist_ok=True)
+        step = None if resume is None else resume[0]
+        self.history = HistoryWriter(out_dir / "history.csv", self.columns, step)
+        self.states = StateWriter(out_dir / "results.h5", case_text, disc.beams, model.n_dof,
+                                  abscissa, step)
+        self.maps = [(polyline_matrix(b, case.output.samples_per_element),
+                      slice(b.offset, b.offset + b.n_cp)) for b in disc.beams]
+        self.vtk = VtkSeries(out_dir, [m for m, _ in self.maps],
+                             [b.section.half_depth for b in disc.beams], self.x_ref,
+                             [b.offset for b in disc.beams], [b.n_cp for b in disc.beams],
+                             None if resume is None else resume[1])
+
+    def x(self, u) -> np.ndarray:
+        """Control points for the flat displacement u."""
+        return self.x_ref + np.asarray(u).reshape(-1, 2)
+
+    def row(self, step: int, parameter: float, u, values: dict, iterations: int,
+            cutbacks: int, **extra) -> None:
+        """Append one history row."""
+        self.history.write({"step": step, self.abscissa: parameter,
+                            **self.points.values(self.x(u)), **values,
+                            "newton_iters": iterations, "cutbacks": cutbacks, **extra})
+
+    def close(self) -> None:
+        """Close the files."""
+        self.history.close()
+        self.states.close()
+
+    def axes(self, u) -> list[np.ndarray]:
+        """Polylines of every beam axis."""
+        x = self.x(u)
+        return [m @ x[s] for m, s in self.maps]
+
+    def plots(self) -> None:
+        """shapes.png from the saved states, points.png and (dynamics) energies.png."""
+        import h5py
+
+        with h5py.File(self.out_dir / "results.h5", "r") as f:
+            params = f["states/parameter"][:]
+            n = len(params)
+            if n == 0:
+                return
+            picks = np.unique(np.linspace(0, n - 1, min(n, 9)).astype(int))
+            shapes = [(f"{self.abscissa} {params[i]:.3g}", self.axes(f["states/u"][i]))
+                      for i in picks]
+        plot_shapes(shapes, self.axes(np.zeros(self.x_ref.size)),
+                    self.out_dir / "plots" / "shapes.png", self.case.title)
+        history = read_history(self.out_dir / "history.csv")
+        if self.points.names:
+            plot_point_histories(history, self.abscissa, self.points.names,
+                                 self.out_dir / "plots" / "points.png", self.case.title)
+        if self.abscissa == "t":
+            plot_energies(history, self.out_dir / "plots" / "energies.png", self.case.title)
+
+    def extremes(self) -> dict:
+        """Smallest, largest and final displacement of every output point."""
+        h = read_history(self.out_dir / "history.csv")
+        return {f"{n}_{c}": {"min": float(h[f"{n}_{c}"].min()),
+                             "max": float(h[f"{n}_{c}"].max()),
+                             "final": float(h[f"{n}_{c}"][-1])}
+                for n in self.points.names for c in ("ux", "uy")}
+
+
 def _discretize(case: Case) -> Discretization:
     try:
         return discretize(case)
@@ -60,93 +151,174 @@ def _discretize(case: Case) -> Discretization:
 
 
 def run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | None = None,
-             ) -> dict:
+             restart: bool = False) -> dict:
     """Run ``case`` and write its results into ``out_dir``; returns the summary."""
     require_x64()
-    if case.analysis.kind != "static":
-        raise CaseError('analysis.kind: "dynamic" is not available in this version yet')
     if case.contact.model != "none":
         raise CaseError(f'contact.model: "{case.contact.model}" is not available in this '
                         f'version yet (use "none")')
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "plots").mkdir(exist_ok=True)
+    if restart and case.analysis.kind != "dynamic":
+        raise CaseError("--restart continues dynamic runs only (analysis.kind = \"dynamic\")")
     wall0 = time.perf_counter()
     disc = _discretize(case)
     model, disc = build_model(case, disc)
-    x_ref = np.asarray(model.x_ref)
-    points = OutputPoints(case, disc, x_ref)
-    columns = (["step", "load_factor", *points.columns(), "E_strain", "E_gravity", "E_ext",
-                "E_total", "newton_iters", "cutbacks"])
-    history = HistoryWriter(out_dir / "history.csv", columns)
-    states = StateWriter(out_dir / "results.h5", case_text, disc.beams, model.n_dof,
-                         "load_factor")
-    vtk = VtkSeries(out_dir, [polyline_matrix(b, case.output.samples_per_element)
-                              for b in disc.beams],
-                    [b.section.half_depth for b in disc.beams], x_ref,
-                    [b.offset for b in disc.beams], [b.n_cp for b in disc.beams])
-    snapshots: list[tuple[float, np.ndarray]] = []
-
-    def on_step(s: StaticStep) -> None:
-        x = x_ref + s.u.reshape(-1, 2)
-        e = s.energies
-        history.write({"step": s.step, "load_factor": s.load_factor, **points.values(x), **e,
-                       "E_total": e["E_strain"] + e["E_gravity"] + e["E_ext"],
-                       "newton_iters": s.iterations, "cutbacks": s.cutbacks})
-        states.write(s.step, s.load_factor, s.u)
-        if s.step % case.output.vtk_every == 0 or s.load_factor >= 1.0 - 1e-12:
-            vtk.write(s.load_factor, x)
-        snapshots.append((s.load_factor, x))
-        if progress is not None:
-            progress(s.load_factor, f"load factor {s.load_factor:.3f}")
-
     opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, 0.0, case.solver.utol)
-    try:
-        result = solve_static(model, case.analysis.load_steps, opts, disc.length_scale,
-                              case.solver.max_cutbacks, on_step)
-    finally:
-        history.close()
-        states.close()
-    _static_plots(case, disc, out_dir, snapshots, points)
-    summary = {
-        "title": case.title, "kind": "static", "status": result.status,
-        "message": result.message, "steps": result.steps,
-        "newton_iterations": result.iterations, "cutbacks": result.cutbacks,
-        "final_load_factor": result.load_factor,
-        "wall_time_s": time.perf_counter() - wall0,
-        "solve_time_s": result.wall_time, "compile_time_s": result.compile_time,
-        "n_dof": model.n_dof, "n_elements": sum(b.mesh.n_elements for b in disc.beams),
-        "extremes": _extremes(out_dir / "history.csv", points.names),
-        "beamcontact_version": __version__,
-    }
+    run = _run_static if case.analysis.kind == "static" else _run_dynamic
+    summary = run(case, case_text, disc, model, out_dir, opts, progress, restart)
+    summary.update({"title": case.title, "kind": case.analysis.kind,
+                    "wall_time_s": time.perf_counter() - wall0, "n_dof": model.n_dof,
+                    "n_elements": sum(b.mesh.n_elements for b in disc.beams),
+                    "beamcontact_version": __version__})
     write_summary(out_dir / "summary.json", summary)
     return summary
 
 
-def _extremes(path: Path, names: list[str]) -> dict:
-    h = read_history(path)
-    out = {}
-    for n in names:
-        for c in ("ux", "uy"):
-            v = h[f"{n}_{c}"]
-            out[f"{n}_{c}"] = {"min": float(v.min()), "max": float(v.max()),
-                               "final": float(v[-1])}
-    return out
+def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart) -> dict:
+    out = _Outputs(case, case_text, disc, model, out_dir, "load_factor", ENERGY_COLUMNS)
+
+    def on_step(s: StaticStep) -> None:
+        e = s.energies
+        e = {**e, "E_total": e["E_strain"] + e["E_gravity"] + e["E_ext"]}
+        out.row(s.step, s.load_factor, s.u, e, s.iterations, s.cutbacks)
+        out.states.write(s.step, s.load_factor, s.u)
+        if s.step % case.output.vtk_every == 0 or s.load_factor >= 1.0 - 1e-12:
+            out.vtk.write(s.load_factor, out.x(s.u))
+        if progress is not None:
+            progress(s.load_factor, f"load factor {s.load_factor:.3f}")
+
+    try:
+        result = solve_static(model, case.analysis.load_steps, opts, disc.length_scale,
+                              case.solver.max_cutbacks, on_step)
+    except KeyboardInterrupt:
+        _interrupted(out, out_dir)
+        raise
+    out.close()
+    out.plots()
+    return {"status": result.status, "message": result.message, "steps": result.steps,
+            "newton_iterations": result.iterations, "cutbacks": result.cutbacks,
+            "final_load_factor": result.load_factor, "solve_time_s": result.wall_time,
+            "compile_time_s": result.compile_time, "extremes": out.extremes()}
 
 
-def _static_plots(case: Case, disc: Discretization, out_dir: Path,
-                  snapshots: list[tuple[float, np.ndarray]], points: OutputPoints) -> None:
-    maps = [(polyline_matrix(b, case.output.samples_per_element),
-             slice(b.offset, b.offset + b.n_cp)) for b in disc.beams]
+def _interrupted(out: _Outputs, out_dir: Path) -> None:
+    out.close()
+    write_summary(out_dir / "summary.json", {
+        "status": "interrupted",
+        "message": "interrupted by the user; every accepted step is in history.csv and "
+                   "results.h5"})
 
-    def axes(x):
-        return [m @ x[s] for m, s in maps]
 
-    if not snapshots:
-        return
-    picks = snapshots if len(snapshots) <= 11 else [
-        snapshots[i] for i in np.unique(np.linspace(0, len(snapshots) - 1, 11).astype(int))]
-    plot_shapes([(f"load factor {lam:.2f}", axes(x)) for lam, x in picks[1:]],
-                axes(snapshots[0][1]), out_dir / "plots" / "shapes.png", case.title)
-    if points.names:
-        plot_point_histories(read_history(out_dir / "history.csv"), "load_factor", points.names,
-                             out_dir / "plots" / "points.png", case.title)
+def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, dict]:
+    path = out_dir / "results.h5"
+    if not path.is_file():
+        raise CaseError(f"--restart: {path} does not exist (run without --restart first)")
+    stored_text, last = read_last_state(path)
+    stored = parse_case(tomllib.loads(stored_text))
+    _same_model(stored, case)
+    if "v" not in last or last["u"].shape != (model.n_dof,):
+        raise CaseError(f"--restart: {path} does not hold a dynamic run of this case")
+    state = DynState(jnp.asarray(last["parameter"]), jnp.asarray(last["u"]),
+                     jnp.asarray(last["v"]), jnp.asarray(last["a"]), jnp.asarray(last["f_pot"]),
+                     LoadState(jnp.asarray(last["load_theta"]),
+                               jnp.asarray(last["load_tangent"])))
+    return state, last
+
+
+def _same_model(stored: Case, case: Case) -> None:
+    """Everything but t_end, solver and output settings must match for a restart."""
+    a, b = stored.model_dump(), case.model_dump()
+    for d in (a, b):
+        d["analysis"].pop("t_end")
+        d.pop("output")
+        d.pop("solver")
+        d.pop("title")
+
+    def first_difference(x, y, path=""):
+        if isinstance(x, dict) and isinstance(y, dict):
+            for k in x:
+                found = first_difference(x[k], y.get(k), f"{path}.{k}" if path else k)
+                if found:
+                    return found
+            return None
+        if isinstance(x, list) and isinstance(y, list) and len(x) == len(y):
+            for i, (xi, yi) in enumerate(zip(x, y, strict=True)):
+                found = first_difference(xi, yi, f"{path}[{i}]")
+                if found:
+                    return found
+            return None
+        return None if x == y else path
+
+    diff = first_difference(a, b)
+    if diff:
+        raise CaseError(f"--restart: {diff} differs from the run being continued (only "
+                        f"analysis.t_end, [solver] and [output] may change)")
+
+
+def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart) -> dict:
+    an = case.analysis
+    interval = case.output.vtk_interval or an.t_end / 100.0
+    if restart:
+        state, last = _restart_state(case, out_dir, model)
+        step0, dt_start = int(last["step"]), float(last["dt_next"])
+        before = {"iterations": int(last["iterations_total"]),
+                  "cutbacks": int(last["cutbacks_total"])}
+        if float(state.t) >= an.t_end - 1e-12 * an.t_end:
+            raise CaseError(f"--restart: the run in {out_dir} already reached t = "
+                            f"{float(state.t):.6g} s >= analysis.t_end")
+        out = _Outputs(case, case_text, disc, model, out_dir, "t", DYNAMIC_COLUMNS,
+                       resume=(step0, float(state.t)))
+    else:
+        u0 = jnp.zeros(model.n_dof)
+        v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
+        state = initial_state(u0, v0, model, initial_load_state(model))
+        step0, dt_start, before = 0, an.dt, {"iterations": 0, "cutbacks": 0}
+        out = _Outputs(case, case_text, disc, model, out_dir, "t", DYNAMIC_COLUMNS)
+    next_snapshot = [np.floor(float(state.t) / interval + 1e-9) * interval + interval]
+    totals = dict(before)
+
+    def save(step: int, t: float, st: DynState, h: float, iterations: int, cutbacks: int,
+             diag: dict, dt_next: float) -> None:
+        out.row(step, t, st.u, diag, iterations, cutbacks, dt=h)
+        out.states.write(step, t, st.u, v=st.v, a=st.a, f_pot=st.f_pot,
+                         load_theta=st.load_state.theta, load_tangent=st.load_state.tangent,
+                         dt=h, dt_next=dt_next, iterations_total=totals["iterations"],
+                         cutbacks_total=cutbacks)
+
+    if not restart:
+        from beamcontact.dynamics.driver import host_diagnostics
+
+        save(0, 0.0, state, 0.0, 0, 0, host_diagnostics(state, model), an.dt)
+        out.vtk.write(0.0, out.x(state.u))
+
+    def on_step(s: DynamicStep) -> None:
+        totals["iterations"] += s.iterations
+        cutbacks = before["cutbacks"] + s.cutbacks
+        save(s.step, s.t, s.state, s.dt, s.iterations, cutbacks, s.diagnostics,
+             min(2.0 * s.dt, an.dt))
+        if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
+            out.vtk.write(s.t, out.x(s.state.u))
+            next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval
+        if progress is not None:
+            progress(s.t / an.t_end, f"t = {s.t:.4g} s, dt = {s.dt:.3g} s")
+
+    try:
+        result = solve_dynamic(model, state, an.t_end, an.dt, an.alpha, opts,
+                               disc.length_scale, case.solver.max_cutbacks,
+                               dt_start=dt_start, step0=step0, on_step=on_step)
+    except KeyboardInterrupt:
+        _interrupted(out, out_dir)
+        raise
+    out.close()
+    out.plots()
+    h = read_history(out_dir / "history.csv")
+    steps = step0 + result.steps
+    iterations = before["iterations"] + result.iterations
+    return {"status": result.status, "message": result.message, "steps": steps,
+            "newton_iterations": iterations, "cutbacks": before["cutbacks"] + result.cutbacks,
+            "restarted_from_step": step0 if restart else None,
+            "t_final": result.t, "mean_iterations_per_step": iterations / max(steps, 1),
+            "solve_time_s": result.wall_time, "compile_time_s": result.compile_time,
+            "energy": {"E_total_initial": float(h["E_total"][0]),
+                       "E_total_final": float(h["E_total"][-1]),
+                       "E_kin_max": float(h["E_kin"].max())},
+            "extremes": out.extremes()}

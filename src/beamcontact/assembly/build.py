@@ -113,6 +113,7 @@ def _block(info: BeamInfo, beam: Beam) -> BeamBlock:
         ddR=as_float(mesh.ddR), wq=as_float(mesh.wq), g_ref=as_float(g), K_ref=as_float(K),
         eta=as_float(sec.eta), w_eta=as_float(sec.weights), E=as_float(beam.material.E),
         rho_area=as_float(beam.material.density * sec.area),
+        rho_inertia=as_float(beam.material.density * sec.inertia),
         gravity_on=as_float(1.0 if beam.gravity else 0.0))
 
 

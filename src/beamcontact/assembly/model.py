@@ -29,7 +29,8 @@ class BeamBlock:
 
     Shapes: conn (n_el, n_loc) global control-point indices; R, dR, ddR (n_el, n_qp, n_loc);
     wq, g_ref, K_ref (n_el, n_qp); eta, w_eta (n_eta,); scalars E, rho_area (mass per
-    reference length), gravity_on (1.0 or 0.0).
+    reference length), rho_inertia (rho I, rotational inertia per reference length),
+    gravity_on (1.0 or 0.0).
     """
 
     conn: jax.Array
@@ -43,6 +44,7 @@ class BeamBlock:
     w_eta: jax.Array
     E: jax.Array
     rho_area: jax.Array
+    rho_inertia: jax.Array
     gravity_on: jax.Array
 
 

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 
 from beamcontact.assembly.model import BeamBlock, LoadState, Model, element_dofs
 from beamcontact.beam.energy import element_gravity_potential, element_strain_energy
-from beamcontact.beam.loads import point_load_potential
+from beamcontact.beam.loads import point_load_potential, tangent_rotation
 
 
 def _beam_energy(x_e, blk_e, blk: BeamBlock, lam, gravity):
@@ -91,3 +91,11 @@ def apply_supports(r: jax.Array, K: jax.Array, free: jax.Array):
     r = r * free
     K = K * free[:, None] * free[None, :] + jnp.diag(1.0 - free)
     return r, K
+
+
+def update_load_state(model: Model, u: jax.Array, state: LoadState) -> LoadState:
+    """Rotations and tangents of the load points at the converged displacement u."""
+    x = model.x_ref + u.reshape(-1, 2)
+    t = jnp.einsum("lk,lkd->ld", model.loads.dR, x[model.loads.conn])
+    theta = jax.vmap(tangent_rotation)(t, state.theta, state.tangent)
+    return LoadState(theta=theta, tangent=t)

@@ -256,10 +256,15 @@ class OutputPoint(_Strict):
 
 
 class Output(_Strict):
-    """What is written: followed points, VTU cadence and polyline resolution."""
+    """What is written: followed points, VTU cadence and polyline resolution.
+
+    Statics write a VTU snapshot every ``vtk_every`` load steps; dynamics every
+    ``vtk_interval`` seconds of simulated time (default t_end / 100).
+    """
 
     points: list[OutputPoint] = []
     vtk_every: Annotated[int, Field(ge=1)] = 1
+    vtk_interval: Positive | None = None
     samples_per_element: Annotated[int, Field(ge=1, le=200)] = 8
 
 

@@ -14,21 +14,31 @@ import numpy as np
 
 
 class HistoryWriter:
-    """history.csv: one row per accepted step, flushed at once."""
+    """history.csv: one row per accepted step, flushed at once.
 
-    def __init__(self, path: Path, columns: list[str]):
+    With ``resume_after_step`` the existing file is kept up to that step (rows written after
+    the last saved state of an interrupted run are dropped) and appended to.
+    """
+
+    def __init__(self, path: Path, columns: list[str], resume_after_step: int | None = None):
         self.columns = columns
+        kept: list[list[str]] = []
+        if resume_after_step is not None:
+            with open(path, newline="", encoding="utf-8") as f:
+                rows = list(csv.reader(f))
+            if not rows or rows[0] != columns:
+                raise ValueError(f"{path}: columns differ from this case's; cannot resume")
+            kept = [r for r in rows[1:] if int(r[0]) <= resume_after_step]
         self._file = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
         self._csv = csv.writer(self._file)
         self._csv.writerow(columns)
+        self._csv.writerows(kept)
         self._file.flush()
-        self.rows: list[dict] = []
 
     def write(self, row: dict) -> None:
         """Append one row; missing columns are an error (the header is fixed)."""
         self._csv.writerow([_fmt(row[c]) for c in self.columns])
         self._file.flush()
-        self.rows.append(row)
 
     def close(self) -> None:
         """Close the file."""
@@ -72,7 +82,17 @@ class StateWriter:
     the load factor in statics and the time in dynamics); root attrs ``case_toml``.
     """
 
-    def __init__(self, path: Path, case_text: str, beams, n_dof: int, parameter_name: str):
+    def __init__(self, path: Path, case_text: str, beams, n_dof: int, parameter_name: str,
+                 resume_after_step: int | None = None):
+        if resume_after_step is not None:
+            self._h5 = h5py.File(path, "a")
+            st = self._h5["states"]
+            keep = int(np.sum(st["step"][:] <= resume_after_step))
+            for name in st:
+                st[name].resize(keep, axis=0)
+            self._h5.attrs["case_toml"] = case_text
+            self._h5.flush()
+            return
         self._h5 = h5py.File(path, "w")
         self._h5.attrs["case_toml"] = case_text
         self._h5.attrs["parameter"] = parameter_name
@@ -107,3 +127,13 @@ class StateWriter:
     def close(self) -> None:
         """Close the file."""
         self._h5.close()
+
+
+def read_last_state(path: Path) -> tuple[str, dict[str, np.ndarray]]:
+    """The stored case text and the arrays of the last saved state of results.h5."""
+    with h5py.File(path, "r") as f:
+        st = f["states"]
+        n = st["step"].shape[0]
+        if n == 0:
+            raise ValueError(f"{path} holds no state")
+        return str(f.attrs["case_toml"]), {name: st[name][n - 1] for name in st}

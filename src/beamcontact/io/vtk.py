@@ -4,6 +4,7 @@ Point data: ``displacement`` (3-vector, z = 0), ``radius`` (section half-depth, 
 Tube filter); cell data: ``beam`` (index of the beam in the case).
 """
 
+import re
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -15,7 +16,8 @@ class VtkSeries:
     """Writes ``vtk/beams_NNNNN.vtu`` and keeps ``beams.pvd`` valid after every snapshot."""
 
     def __init__(self, out_dir: Path, polylines: list[np.ndarray], radii: list[float],
-                 x_ref: np.ndarray, offsets: list[int], n_cps: list[int]):
+                 x_ref: np.ndarray, offsets: list[int], n_cps: list[int],
+                 resume_until: float | None = None):
         self.out_dir = out_dir
         (out_dir / "vtk").mkdir(parents=True, exist_ok=True)
         self._maps = polylines
@@ -23,6 +25,11 @@ class VtkSeries:
         self._x_ref = x_ref
         self._radii = radii
         self._entries: list[tuple[float, str]] = []
+        if resume_until is not None and (out_dir / "beams.pvd").is_file():
+            text = (out_dir / "beams.pvd").read_text(encoding="utf-8")
+            for t, f in re.findall(r'timestep="([^"]+)" part="0" file="([^"]+)"', text):
+                if float(t) <= resume_until:
+                    self._entries.append((float(t), f))
         cells, start = [], 0
         beam_ids = []
         for b, m in enumerate(polylines):

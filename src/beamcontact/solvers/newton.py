@@ -20,7 +20,6 @@ class NewtonOptions:
     rtol: float = 1e-9
     atol: float = 0.0
     utol: float = 1e-11
-    length: float = 1.0
 
 
 class NewtonResult:
@@ -41,13 +40,13 @@ jax.tree_util.register_pytree_node(
 )
 
 
-def newton(residual_tangent, u0, opts: NewtonOptions, tolerances) -> NewtonResult:
+def newton(residual_tangent, u0, max_iterations: int, tolerances) -> NewtonResult:
     """Solve residual(u) = 0 from u0.
 
     Args:
         residual_tangent: u -> (r, K) with supports already applied.
         u0: predictor.
-        opts: the static iteration limit.
+        max_iterations: the static iteration limit.
         tolerances: array (rtol, atol, utol * length), traced so no recompilation.
     """
     rtol, atol, utol_abs = tolerances[0], tolerances[1], tolerances[2]
@@ -56,7 +55,7 @@ def newton(residual_tangent, u0, opts: NewtonOptions, tolerances) -> NewtonResul
 
     def cond(state):
         _, _, _, k, done, failed, _ = state
-        return (~done) & (~failed) & (k < opts.max_iterations)
+        return (~done) & (~failed) & (k < max_iterations)
 
     def body(state):
         u, r, K, k, _, _, _ = state

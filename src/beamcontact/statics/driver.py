@@ -15,8 +15,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
-from beamcontact.assembly.system import apply_supports, energies, potential_residual_tangent
-from beamcontact.beam.loads import tangent_rotation
+from beamcontact.assembly.system import (
+    apply_supports,
+    energies,
+    potential_residual_tangent,
+    update_load_state,
+)
 from beamcontact.solvers.newton import NewtonOptions, newton
 
 
@@ -47,24 +51,17 @@ class StaticResult:
     compile_time: float
 
 
-def _update_load_state(model: Model, u: jax.Array, state: LoadState) -> LoadState:
-    x = model.x_ref + u.reshape(-1, 2)
-    t = jnp.einsum("lk,lkd->ld", model.loads.dR, x[model.loads.conn])
-    theta = jax.vmap(tangent_rotation)(t, state.theta, state.tangent)
-    return LoadState(theta=theta, tangent=t)
-
-
 @jax.jit(static_argnames=("max_iterations",))
 def _solve_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iterations):
     def residual_tangent(u):
         r, K = potential_residual_tangent(u, model, lam, load_state)
         return apply_supports(r, K, model.free)
 
-    return newton(residual_tangent, u0, NewtonOptions(max_iterations), tolerances)
+    return newton(residual_tangent, u0, max_iterations, tolerances)
 
 
 _energies = jax.jit(energies)
-_update = jax.jit(_update_load_state)
+_update = jax.jit(update_load_state)
 
 
 def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: float,
