@@ -240,3 +240,22 @@ def test_stiff_pinned_beam_swings_like_rigid_pendulum():
         phi = sol.sol(t)[0]
         tip = _point(model, disc, u, "b", 1.0)
         np.testing.assert_allclose(tip, [L * np.cos(phi), -L * np.sin(phi)], atol=1e-4 * L)
+
+
+def test_per_beam_gravity_switch_and_initial_velocity():
+    """Beam "a" falls; beam "b" has gravity off and drifts at its initial velocity."""
+    from beamcontact.dynamics.driver import uniform_velocities
+
+    g, vel = 9.81, (0.4, -1.5)
+    case = static_case([beam("a", line=([0, 0], [1, 0]), degree=3, elements=3),
+                        {**beam("b", line=([0, 2], [1, 2]), degree=3, elements=3,
+                                gravity=False), "initial_velocity": list(vel)}],
+                       gravity=(0.0, -g))
+    model, disc = build_model(case)
+    v0 = uniform_velocities(disc, [b.initial_velocity for b in case.beams])
+    steps, _ = _simulate(model, disc, 0.3, 0.05, -0.2, v0=v0)
+    t, u, _ = steps[-1]
+    np.testing.assert_allclose(_point(model, disc, u, "a", 0.5), [0.5, -0.5 * g * t**2],
+                               atol=1e-12)
+    np.testing.assert_allclose(_point(model, disc, u, "b", 0.5),
+                               [0.5 + vel[0] * t, 2 + vel[1] * t], atol=1e-12)

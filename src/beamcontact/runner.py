@@ -212,7 +212,11 @@ def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, d
     path = out_dir / "results.h5"
     if not path.is_file():
         raise CaseError(f"--restart: {path} does not exist (run without --restart first)")
-    stored_text, last = read_last_state(path)
+    try:
+        stored_text, last = read_last_state(path)
+    except (OSError, KeyError, ValueError) as exc:
+        raise CaseError(f"--restart: cannot read the last state from {path} ({exc}); is "
+                        f"another run writing it?") from None
     stored = parse_case(tomllib.loads(stored_text))
     _same_model(stored, case)
     if "v" not in last or last["u"].shape != (model.n_dof,):
