@@ -63,8 +63,9 @@ def _to_toml(raw: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def test_bundled_case_is_the_example():
-    assert bundled_case().read_text() == EXAMPLE.read_text()
+def test_bundled_case_is_the_free_fall_benchmark():
+    expected = REPO / "examples" / "free_fall" / "case_cg.toml"
+    assert bundled_case().read_text() == expected.read_text()
 
 
 def test_run_end_moment_example_closes_circle(tmp_path):

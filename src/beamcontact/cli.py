@@ -13,7 +13,7 @@ import typer
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Contact dynamics of slender elastic beams.")
 
-BUNDLED_CASE = "cantilever_end_moment/case.toml"
+BUNDLED_CASE = "free_fall/case_cg.toml"
 
 
 def bundled_case() -> Path:
@@ -94,6 +94,39 @@ def run(
     typer.echo(f"results in {out}")
     if summary["status"] != "completed":
         raise typer.Exit(1)
+
+
+@app.command()
+def compare(
+    runs: Annotated[list[Path], typer.Argument(help="Output folders of runs to overlay.")],
+    point: Annotated[str, typer.Option(help="Output point to plot.")] = "A",
+    component: Annotated[str, typer.Option(help="ux, uy, x or y.")] = "uy",
+    out: Annotated[Path, typer.Option("--out", "-o", help="PNG file to write.")] = Path(
+        "compare.png"),
+    labels: Annotated[list[str] | None, typer.Option(
+        "--label", help="Curve labels, one per run (default: folder names).")] = None,
+) -> None:
+    """Overlay one output point of several runs against time or load factor (Figs. 7-10)."""
+    from beamcontact.io.results import read_history
+    from beamcontact.plot import plot_overlay
+
+    if labels and len(labels) != len(runs):
+        _fail(f"--label: give one label per run ({len(runs)}), got {len(labels)}", 2)
+    curves, abscissa = [], "t"
+    for k, run_dir in enumerate(runs):
+        path = run_dir / "history.csv"
+        if not path.is_file():
+            _fail(f"{path}: no such file (is {run_dir} a beamcontact output folder?)", 2)
+        h = read_history(path)
+        column = f"{point}_{component}"
+        if column not in h:
+            _fail(f"{path}: no column {column!r} (output points: "
+                  f"{sorted({c.rsplit('_', 1)[0] for c in h if c.endswith('_uy')})})", 2)
+        abscissa = "t" if "t" in h else "load_factor"
+        curves.append((labels[k] if labels else run_dir.name, h[abscissa], h[column]))
+    plot_overlay(curves, out, "t [s]" if abscissa == "t" else "load factor",
+                 f"{point} {component} [m]")
+    typer.echo(f"wrote {out}")
 
 
 @app.command()

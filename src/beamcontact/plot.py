@@ -64,3 +64,75 @@ def plot_energies(history: dict[str, np.ndarray], path: Path, title: str = "") -
     fig.tight_layout()
     fig.savefig(path, dpi=150)
     plt.close(fig)
+
+
+def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[float],
+                   path: Path, title: str = "") -> None:
+    """A grid of snapshots of all beams (paper Fig. 6); beams drawn with their thickness."""
+    n = len(frames)
+    cols = min(n, 3)
+    rows = int(np.ceil(n / cols))
+    allpts = np.concatenate([p for _, beams in frames for p in beams])
+    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    pad = 0.05 * max(hi - lo) + max(radii)
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.6 * rows), squeeze=False)
+    for ax, (t, beams) in zip(axes.ravel(), frames, strict=False):
+        for k, (pts, r) in enumerate(zip(beams, radii, strict=True)):
+            ax.plot(pts[:, 0], pts[:, 1], lw=max(1.0, 2 * r * 72 / 0.5), solid_capstyle="round",
+                    color=plt.get_cmap("tab10")(k))
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_aspect("equal")
+        ax.set_title(f"t = {t:.3f} s", fontsize=9)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str = "",
+            fps: int = 20) -> None:
+    """GIF of the beams' axes over time (Pillow writer, shipped with matplotlib)."""
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    allpts = np.concatenate([p for _, beams in frames for p in beams])
+    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    pad = 0.05 * max(hi - lo)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.set_title(title, fontsize=9)
+    lines = [ax.plot([], [], lw=3, color=plt.get_cmap("tab10")(k))[0]
+             for k in range(len(frames[0][1]))]
+    label = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=9, va="top")
+
+    def draw(i):
+        t, beams = frames[i]
+        for line, pts in zip(lines, beams, strict=True):
+            line.set_data(pts[:, 0], pts[:, 1])
+        label.set_text(f"t = {t:.3f} s")
+        return [*lines, label]
+
+    FuncAnimation(fig, draw, frames=len(frames), blit=True).save(
+        path, writer=PillowWriter(fps=fps), dpi=80)
+    plt.close(fig)
+
+
+def plot_overlay(curves: list[tuple[str, np.ndarray, np.ndarray]], path: Path, xlabel: str,
+                 ylabel: str, title: str = "") -> None:
+    """Several labelled curves on one axis (paper Figs. 7-10)."""
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for label, x, y in curves:
+        ax.plot(x, y, lw=1.2, label=label)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)

@@ -23,7 +23,13 @@ from beamcontact.assembly.build import (
     polyline_matrix,
 )
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
-from beamcontact.dynamics.driver import DynamicStep, solve_dynamic, uniform_velocities
+from beamcontact.contact.problem import build_contact
+from beamcontact.dynamics.driver import (
+    DynamicStep,
+    host_diagnostics,
+    solve_dynamic,
+    uniform_velocities,
+)
 from beamcontact.dynamics.hht import DynState, initial_state
 from beamcontact.io.case import Case, CaseError, at_fraction, parse_case
 from beamcontact.io.results import (
@@ -34,13 +40,19 @@ from beamcontact.io.results import (
     write_summary,
 )
 from beamcontact.io.vtk import VtkSeries
-from beamcontact.plot import plot_energies, plot_point_histories, plot_shapes
+from beamcontact.plot import (
+    animate,
+    plot_energies,
+    plot_point_histories,
+    plot_shapes,
+    plot_snapshots,
+)
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import StaticStep, solve_static
 
 Progress = Callable[[float, str], None]
 
-ENERGY_COLUMNS = ["E_strain", "E_gravity", "E_ext", "E_total"]
+ENERGY_COLUMNS = ["E_strain", "E_gravity", "E_ext", "E_contact", "E_total", "min_gap"]
 DYNAMIC_COLUMNS = ["E_kin", *ENERGY_COLUMNS, "p_x", "p_y"]  # then newton_iters, cutbacks
 
 
@@ -114,7 +126,8 @@ class _Outputs:
         return [m @ x[s] for m, s in self.maps]
 
     def plots(self) -> None:
-        """shapes.png from the saved states, points.png and (dynamics) energies.png."""
+        """shapes.png from the saved states, points.png; dynamics also energies.png,
+        snapshots.png (a grid of instants) and animation.gif (every VTU instant)."""
         import h5py
 
         with h5py.File(self.out_dir / "results.h5", "r") as f:
@@ -123,10 +136,23 @@ class _Outputs:
             if n == 0:
                 return
             picks = np.unique(np.linspace(0, n - 1, min(n, 9)).astype(int))
-            shapes = [(f"{self.abscissa} {params[i]:.3g}", self.axes(f["states/u"][i]))
-                      for i in picks]
-        plot_shapes(shapes, self.axes(np.zeros(self.x_ref.size)),
+            shapes = [(params[i], self.axes(f["states/u"][i])) for i in picks]
+            if self.abscissa == "t":
+                interval = self.case.output.vtk_interval or self.case.analysis.t_end / 100
+                marks = np.arange(0.0, params[-1] + 1e-9, interval)
+                frames_idx = np.unique(np.searchsorted(params, marks - 1e-9).clip(0, n - 1))
+                if len(frames_idx) > 300:
+                    frames_idx = frames_idx[:: int(np.ceil(len(frames_idx) / 300))]
+                frames = [(params[i], self.axes(f["states/u"][i])) for i in frames_idx]
+        plot_shapes([(f"{self.abscissa} {p:.3g}", a) for p, a in shapes],
+                    self.axes(np.zeros(self.x_ref.size)),
                     self.out_dir / "plots" / "shapes.png", self.case.title)
+        if self.abscissa == "t":
+            radii = [b.section.half_depth for b in self.disc.beams]
+            plot_snapshots(shapes, radii, self.out_dir / "plots" / "snapshots.png",
+                           self.case.title)
+            if len(frames) > 1:
+                animate(frames, self.out_dir / "animation.gif", self.case.title)
         history = read_history(self.out_dir / "history.csv")
         if self.points.names:
             plot_point_histories(history, self.abscissa, self.points.names,
@@ -154,17 +180,15 @@ def run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | Non
              restart: bool = False) -> dict:
     """Run ``case`` and write its results into ``out_dir``; returns the summary."""
     require_x64()
-    if case.contact.model != "none":
-        raise CaseError(f'contact.model: "{case.contact.model}" is not available in this '
-                        f'version yet (use "none")')
     if restart and case.analysis.kind != "dynamic":
         raise CaseError("--restart continues dynamic runs only (analysis.kind = \"dynamic\")")
     wall0 = time.perf_counter()
     disc = _discretize(case)
     model, disc = build_model(case, disc)
     opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, 0.0, case.solver.utol)
+    contact = build_contact(case, disc)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
-    summary = run(case, case_text, disc, model, out_dir, opts, progress, restart)
+    summary = run(case, case_text, disc, model, out_dir, opts, progress, restart, contact)
     summary.update({"title": case.title, "kind": case.analysis.kind,
                     "wall_time_s": time.perf_counter() - wall0, "n_dof": model.n_dof,
                     "n_elements": sum(b.mesh.n_elements for b in disc.beams),
@@ -173,12 +197,13 @@ def run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | Non
     return summary
 
 
-def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart) -> dict:
+def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart,
+                contact) -> dict:
     out = _Outputs(case, case_text, disc, model, out_dir, "load_factor", ENERGY_COLUMNS)
 
     def on_step(s: StaticStep) -> None:
         e = s.energies
-        e = {**e, "E_total": e["E_strain"] + e["E_gravity"] + e["E_ext"]}
+        e = {**e, "E_total": e["E_strain"] + e["E_gravity"] + e["E_ext"] + e["E_contact"]}
         out.row(s.step, s.load_factor, s.u, e, s.iterations, s.cutbacks)
         out.states.write(s.step, s.load_factor, s.u)
         if s.step % case.output.vtk_every == 0 or s.load_factor >= 1.0 - 1e-12:
@@ -188,7 +213,8 @@ def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart)
 
     try:
         result = solve_static(model, case.analysis.load_steps, opts, disc.length_scale,
-                              case.solver.max_cutbacks, on_step)
+                              case.solver.max_cutbacks, on_step, contact,
+                              case.contact.capacity)
     except KeyboardInterrupt:
         _interrupted(out, out_dir)
         raise
@@ -258,7 +284,8 @@ def _same_model(stored: Case, case: Case) -> None:
                         f"analysis.t_end, [solver] and [output] may change)")
 
 
-def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart) -> dict:
+def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
+                 contact) -> dict:
     an = case.analysis
     interval = case.output.vtk_interval or an.t_end / 100.0
     if restart:
@@ -274,7 +301,11 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart)
     else:
         u0 = jnp.zeros(model.n_dof)
         v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
-        state = initial_state(u0, v0, model, initial_load_state(model))
+        cs0 = None if contact is None else contact.grown_set(
+            model.x_ref, 0.0, case.contact.capacity)[0]
+        state = initial_state(u0, v0, model, initial_load_state(model),
+                              None if contact is None else contact.elements, cs0,
+                              "none" if contact is None else contact.law)
         step0, dt_start, before = 0, an.dt, {"iterations": 0, "cutbacks": 0}
         out = _Outputs(case, case_text, disc, model, out_dir, "t", DYNAMIC_COLUMNS)
     next_snapshot = [np.floor(float(state.t) / interval + 1e-9) * interval + interval]
@@ -289,9 +320,7 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart)
                          cutbacks_total=cutbacks)
 
     if not restart:
-        from beamcontact.dynamics.driver import host_diagnostics
-
-        save(0, 0.0, state, 0.0, 0, 0, host_diagnostics(state, model), an.dt)
+        save(0, 0.0, state, 0.0, 0, 0, host_diagnostics(state, model, contact, cs0), an.dt)
         out.vtk.write(0.0, out.x(state.u))
 
     def on_step(s: DynamicStep) -> None:
@@ -308,7 +337,9 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart)
     try:
         result = solve_dynamic(model, state, an.t_end, an.dt, an.alpha, opts,
                                disc.length_scale, case.solver.max_cutbacks,
-                               dt_start=dt_start, step0=step0, on_step=on_step)
+                               dt_start=dt_start, step0=step0, on_step=on_step,
+                               contact=contact, capacity=case.contact.capacity,
+                               energy_tol=case.solver.energy_tol)
     except KeyboardInterrupt:
         _interrupted(out, out_dir)
         raise
@@ -325,4 +356,32 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart)
             "energy": {"E_total_initial": float(h["E_total"][0]),
                        "E_total_final": float(h["E_total"][-1]),
                        "E_kin_max": float(h["E_kin"].max())},
-            "extremes": out.extremes()}
+            "extremes": out.extremes(), **contact_summary(h, out.points.names, contact)}
+
+
+def contact_summary(h: dict, points: list[str], contact) -> dict:
+    """First impact, first amplitude of each output point after it, gap extremes.
+
+    The first impact is the first accepted step whose smallest gap is below 1 % of the
+    smallest contact radius; the first amplitude of a point is its first local extremum
+    of u_y after that time (value and time).
+    """
+    if contact is None:
+        return {}
+    gap = h["min_gap"]
+    r_min = float(np.min(np.asarray(contact.elements.radius)))
+    hit = np.where(gap <= 0.01 * r_min)[0]
+    out = {"min_gap": float(np.nanmin(gap)),
+           "max_penetration": float(max(0.0, -np.nanmin(gap))),
+           "first_impact_time": float(h["t"][hit[0]]) if hit.size else None,
+           "first_amplitude": {}}
+    if hit.size:
+        for name in points:
+            uy = h[f"{name}_uy"][hit[0]:]
+            t = h["t"][hit[0]:]
+            dv = np.diff(uy)
+            turn = np.where(np.sign(dv[1:]) != np.sign(dv[:-1]))[0]
+            if turn.size:
+                k = turn[0] + 1
+                out["first_amplitude"][name] = {"uy": float(uy[k]), "t": float(t[k])}
+    return out

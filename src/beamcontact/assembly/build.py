@@ -6,6 +6,7 @@ that keeps what the writers need (curves, offsets, names).
 
 from dataclasses import dataclass
 
+import jax.numpy as jnp
 import numpy as np
 
 from beamcontact.assembly.model import BeamBlock, Model, PointLoads, as_float
@@ -109,7 +110,7 @@ def _block(info: BeamInfo, beam: Beam) -> BeamBlock:
     g, K = _reference_metric(mesh)
     sec = info.section
     return BeamBlock(
-        conn=np.asarray(mesh.conn + info.offset), R=as_float(mesh.R), dR=as_float(mesh.dR),
+        conn=jnp.asarray(mesh.conn + info.offset), R=as_float(mesh.R), dR=as_float(mesh.dR),
         ddR=as_float(mesh.ddR), wq=as_float(mesh.wq), g_ref=as_float(g), K_ref=as_float(K),
         eta=as_float(sec.eta), w_eta=as_float(sec.weights), E=as_float(beam.material.E),
         rho_area=as_float(beam.material.density * sec.area),
@@ -131,7 +132,7 @@ def _point_loads(case: Case, disc: Discretization) -> PointLoads:
         R[i, :m], dR[i, :m] = d[0], d[1]
     force = np.array([ld.force for ld in case.loads], float).reshape(n, 2)
     moment = np.array([ld.moment for ld in case.loads], float)
-    return PointLoads(conn=np.asarray(conn), R=as_float(R), dR=as_float(dR),
+    return PointLoads(conn=jnp.asarray(conn), R=as_float(R), dR=as_float(dR),
                       force=as_float(force), moment=as_float(moment))
 
 

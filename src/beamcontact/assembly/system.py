@@ -15,6 +15,7 @@ import jax.numpy as jnp
 from beamcontact.assembly.model import BeamBlock, LoadState, Model, element_dofs
 from beamcontact.beam.energy import element_gravity_potential, element_strain_energy
 from beamcontact.beam.loads import point_load_potential, tangent_rotation
+from beamcontact.contact.blocks import contact_energy, contact_residual_tangent
 
 
 def _beam_energy(x_e, blk_e, blk: BeamBlock, lam, gravity):
@@ -81,6 +82,24 @@ def potential_residual_tangent(u: jax.Array, model: Model, lam, load_state: Load
         k_l = jax.vmap(jax.hessian(load_local))(*args)
         r, K = _scatter(r, K, element_dofs(ld.conn), r_l, k_l)
     return r, K
+
+
+def residual_tangent_with_contact(u, model: Model, lam, load_state: LoadState, ce, cs,
+                                  law: str):
+    """:func:`potential_residual_tangent` plus the contact blocks frozen in ``cs``."""
+    r, K = potential_residual_tangent(u, model, lam, load_state)
+    if law == "none":
+        return r, K
+    x = model.x_ref + u.reshape(-1, 2)
+    r_c, K_c = contact_residual_tangent(x, ce, cs, law, model.n_dof)
+    return r + r_c, K + K_c
+
+
+def contact_energy_of(u, model: Model, ce, cs, law: str):
+    """Contact energy of the frozen blocks at displacement u (0 without contact)."""
+    if law == "none":
+        return jnp.asarray(0.0)
+    return contact_energy(model.x_ref + u.reshape(-1, 2), ce, cs, law)
 
 
 def apply_supports(r: jax.Array, K: jax.Array, free: jax.Array):

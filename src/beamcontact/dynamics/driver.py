@@ -7,6 +7,7 @@ to land on ``t_end``. Every accepted step goes to ``on_step`` at once.
 """
 
 import time
+from functools import partial
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -16,7 +17,10 @@ import numpy as np
 
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
-from beamcontact.assembly.system import energies
+from beamcontact.assembly.system import contact_energy_of, energies
+from beamcontact.contact.blocks import ContactSet, block_gaps, block_weights_cg
+from beamcontact.contact.broadphase import box_gap_lower_bound, candidate_pairs
+from beamcontact.contact.problem import ContactProblem, grown_capacity
 from beamcontact.dynamics.hht import DynState, hht_step
 from beamcontact.solvers.newton import NewtonOptions
 
@@ -50,25 +54,92 @@ class DynamicResult:
     compile_time: float
 
 
-@jax.jit
-def diagnostics(state: DynState, model: Model) -> dict:
-    """Energies and linear momentum of a state."""
+@partial(jax.jit, static_argnames=("law",))
+def diagnostics(state: DynState, model: Model, ce=None, cs=None, law: str = "none") -> dict:
+    """Energies (contact included) and linear momentum of a state."""
     e = energies(state.u, model, 1.0, state.load_state)
     e_kin, p = kinetic_energy_and_momentum(state.u, state.v, model)
-    return {**e, "E_kin": e_kin, "p_x": p[0], "p_y": p[1]}
+    e_con = contact_energy_of(state.u, model, ce, cs, law)
+    return {**e, "E_contact": e_con, "E_kin": e_kin, "p_x": p[0], "p_y": p[1]}
 
 
-def host_diagnostics(state: DynState, model: Model) -> dict:
-    """:func:`diagnostics` as Python floats, with E_total."""
-    d = {k: float(v) for k, v in diagnostics(state, model).items()}
-    d["E_total"] = d["E_kin"] + d["E_strain"] + d["E_gravity"] + d["E_ext"]
+def host_diagnostics(state: DynState, model: Model, contact: "ContactProblem | None" = None,
+                     cs=None, gap: float | None = None) -> dict:
+    """:func:`diagnostics` as Python floats, with E_total and min_gap."""
+    if contact is None:
+        d = {k: float(v) for k, v in diagnostics(state, model).items()}
+        d["min_gap"] = float("nan")
+    else:
+        d = {k: float(v) for k, v in diagnostics(state, model, contact.elements, cs,
+                                                  contact.law).items()}
+        d["min_gap"] = gap if gap is not None else contact.min_gap(
+            model.x_ref + state.u.reshape(-1, 2), cs)
+    d["E_total"] = d["E_kin"] + d["E_strain"] + d["E_gravity"] + d["E_ext"] + d["E_contact"]
     return d
+
+
+@partial(jax.jit, static_argnames=("max_iterations", "law", "capacity"))
+def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, motion_factor,
+               ce=None, params=None, reach=0.0, cs=None, *, max_iterations: int,
+               law: str = "none", capacity: int = 0):
+    """One attempt at a step, fused into a single dispatch: predictor, broad phase and
+    coarse-grained block weights (unless ``cs`` is given, as IPIP's host selection does),
+    the HHT-alpha Newton solve, the post-step contact checks and the diagnostics.
+
+    Returns (new state, Newton result, frozen set, report) where report holds the
+    candidate count, whether a pair was missed, the smallest gap and the diagnostics.
+    """
+    report = {}
+    if law != "none":
+        if cs is None:
+            x_pred = _predicted_x(state, model, h)
+            margin = reach + motion_factor * _motion(state, h)
+            pairs, count = candidate_pairs(x_pred, ce, margin, capacity)
+            cs = ContactSet(pairs, block_weights_cg(ce, pairs), params)
+            report["count"] = count
+    new, res = hht_step(state, model, h, alpha, rtol, utol, max_iterations, ce, cs, law)
+    if law != "none":
+        x_new = _x(new.u, model)
+        pairs, count = candidate_pairs(x_new, ce, reach, capacity)
+        E = ce.n_elements
+        key = lambda p: p[:, 0] * (E + 1) + p[:, 1]  # noqa: E731
+        found = jnp.isin(key(pairs), key(cs.pairs)) | (pairs[:, 0] >= E)
+        report["missing"] = ~jnp.all(found)
+        report["count_after"] = count
+        gap = jnp.min(block_gaps(x_new, ce, cs.pairs))
+        report["min_gap"] = jnp.where(jnp.isfinite(gap), gap, box_gap_lower_bound(x_new, ce))
+    report["diagnostics"] = diagnostics(new, model, ce, cs, law)
+    return new, res, cs, report
+
+
+def _motion(state: DynState, h):
+    """Largest distance a control point may travel in a step of size h (x2 for safety)."""
+    v, a = jnp.max(jnp.abs(state.v)), jnp.max(jnp.abs(state.a))
+    return 2.0 * jnp.sqrt(2.0) * (v * h + 0.5 * a * h * h)
+
+
+@jax.jit
+def _predicted_x(state: DynState, model: Model, h):
+    return model.x_ref + (state.u + h * state.v + 0.5 * h * h * state.a).reshape(-1, 2)
+
+
+@jax.jit
+def _x(u, model: Model):
+    return model.x_ref + u.reshape(-1, 2)
+
+
+@jax.jit
+def contact_motion(state: DynState, h):
+    """:func:`_motion` as a jitted function for the host (IPIP selection)."""
+    return _motion(state, h)
 
 
 def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha: float,
                   options: NewtonOptions, length: float, max_cutbacks: int = 12, *,
                   dt_start: float | None = None, step0: int = 0,
-                  on_step: Callable[[DynamicStep], None] | None = None) -> DynamicResult:
+                  on_step: Callable[[DynamicStep], None] | None = None,
+                  contact: ContactProblem | None = None,
+                  capacity: int = 64, energy_tol: float = 1e-3) -> DynamicResult:
     """Integrate from ``state`` to ``t_end``.
 
     Args:
@@ -80,6 +151,13 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
         dt_start: the step to try first (a restart passes the interrupted run's).
         step0: number of the last accepted step (restart).
         on_step: called with every accepted step.
+        contact: the contact problem (None: no contact).
+        capacity: initial length of the contact candidate list (grows on overflow).
+        energy_tol: a converged step whose total energy grows by more than energy_tol
+            times (E_kin + E_strain + E_contact) is rejected and retried with half the
+            step. All forces are conservative and HHT-alpha (alpha <= 0) only dissipates,
+            so a gain is an integration error: typically a step that crossed the steep
+            part of a contact potential at once. 0 or less switches the check off.
     """
     start = time.perf_counter()
     rtol = jnp.asarray(options.rtol)
@@ -90,23 +168,64 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
     steps = iterations = cutbacks = consecutive = 0
     compile_time = 0.0
     first = True
+    law = "none" if contact is None else contact.law
+    ce = None if contact is None else contact.elements
+    params = None if contact is None else contact.params
+    reach = 0.0 if contact is None else contact.reach
+    capacity_min = capacity
+    cs0 = None if contact is None else contact.grown_set(_x(state.u, model), 0.0, capacity)[0]
+    e_prev = _energy_totals({k: float(v) for k, v in
+                             diagnostics(state, model, ce, cs0, law).items()})
+    motion_factor = 1.0
     while t_end - t > 1e-12 * max(dt, t_end):
         h = _step_size(t, t_end, dt_cur)
+        cs = None
+        if law == "ipip":  # the closest pairs are chosen on the host
+            cs, count = contact.frozen_set(
+                _predicted_x(state, model, jnp.asarray(h)),
+                motion_factor * float(contact_motion(state, jnp.asarray(h))), capacity)
+            if count > capacity:
+                capacity = grown_capacity(count)
+                continue
         t0 = time.perf_counter()
-        new, res = hht_step(state, model, jnp.asarray(h), alpha_arr, rtol, utol,
-                            max_iterations=options.max_iterations)
-        converged = bool(res.converged)
+        new, res, cs, report = fused_step(
+            state, model, jnp.asarray(h), alpha_arr, rtol, utol, jnp.asarray(motion_factor),
+            ce, params, reach, cs, max_iterations=options.max_iterations, law=law,
+            capacity=capacity)
+        res_host, report = jax.device_get((res, report))
+        converged = bool(res_host.converged)
         if first:
             compile_time = time.perf_counter() - t0
             first = False
-        iterations += int(res.iterations)
+        iterations += int(res_host.iterations)
+        reason = "Newton did not converge"
+        gap = float(report.get("min_gap", np.nan))
+        if contact is not None:
+            count = max(int(report.get("count", 0)), int(report["count_after"]))
+            if count > capacity:  # overflow: reallocate and redo
+                capacity = grown_capacity(count)
+                continue
+            if converged and bool(report["missing"]) and motion_factor < 16:
+                motion_factor *= 2.0  # the step moved further than foreseen: redo it
+                continue
+            if converged and gap < -contact.max_penetration:
+                converged = False
+                reason = f"penetration {-gap:.3g} m exceeded max_penetration"
+        res = res_host
+        diag = {k: float(v) for k, v in report["diagnostics"].items()}
+        e_new = _energy_totals(diag)
+        if converged and energy_tol > 0 and (
+                e_new[0] - e_prev[0] > energy_tol * max(e_new[1], e_prev[1], 1e-300)):
+            converged = False
+            reason = (f"the total energy grew by {e_new[0] - e_prev[0]:.3g} J in one step "
+                      f"(more than energy_tol = {energy_tol:g} of {max(e_new[1], e_prev[1]):.3g} J)")
         if not converged:
             cutbacks += 1
             consecutive += 1
             if consecutive > max_cutbacks:
                 return DynamicResult(
                     "failed",
-                    f"Newton did not converge at t = {t + h:.6g} s ({int(res.iterations)} "
+                    f"{reason} at t = {t + h:.6g} s ({int(res.iterations)} "
                     f"iterations, residual {float(res.residual_norm):.3e} from "
                     f"{float(res.initial_residual_norm):.3e}) after {consecutive - 1} "
                     f"successive halvings of the time step (now {h:.3g} s); the last "
@@ -116,16 +235,30 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
             dt_cur = 0.5 * h
             continue
         consecutive = 0
+        motion_factor = 1.0
         t = _on_grid(t + h, dt, t_end)
         state = replace(new, t=jnp.asarray(t))
         steps += 1
+        e_prev = e_new
+        if contact is not None:
+            # follow the number of candidates both ways: jit keeps one compiled step per
+            # capacity (powers of two), so shrinking after an impact costs nothing
+            capacity = max(capacity_min, grown_capacity(count))
         if on_step is not None:
+            diag["min_gap"] = gap
+            diag["E_total"] = e_new[0]
             on_step(DynamicStep(step0 + steps, t, h, state, int(res.iterations), cutbacks,
-                                host_diagnostics(state, model)))
+                                diag))
         dt_cur = min(2.0 * dt_cur, dt)
     return DynamicResult("completed", f"reached t = {t:.6g} s in {steps} steps", steps,
                          iterations, cutbacks, t, state, dt_cur, time.perf_counter() - start,
                          compile_time)
+
+
+def _energy_totals(d: dict) -> tuple[float, float]:
+    """(total energy, scale of the exchanged energies E_kin + E_strain + E_contact)."""
+    total = d["E_kin"] + d["E_strain"] + d["E_gravity"] + d["E_ext"] + d["E_contact"]
+    return total, d["E_kin"] + d["E_strain"] + abs(d["E_contact"])
 
 
 def _step_size(t: float, t_end: float, dt_cur: float) -> float:

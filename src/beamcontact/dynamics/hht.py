@@ -23,7 +23,7 @@ from beamcontact.assembly.inertia import (
 from beamcontact.assembly.model import LoadState, Model
 from beamcontact.assembly.system import (
     apply_supports,
-    potential_residual_tangent,
+    residual_tangent_with_contact,
     update_load_state,
 )
 from beamcontact.solvers.newton import NewtonResult, newton
@@ -50,35 +50,39 @@ def hht_coefficients(alpha, dt):
     return jnp.stack([1.0 / (beta * dt**2), dt, (1.0 - 2.0 * beta) / (2.0 * beta), gamma])
 
 
-@jax.jit
-def initial_state(u0, v0, model: Model, load_state: LoadState) -> DynState:
+@partial(jax.jit, static_argnames=("law",))
+def initial_state(u0, v0, model: Model, load_state: LoadState, ce=None, cs=None,
+                  law: str = "none") -> DynState:
     """Consistent initial acceleration: F_inertia(u0, v0, a0) = -f_pot(u0) on free dofs."""
     free = model.free
     v0 = v0 * free
-    f_pot, _ = potential_residual_tangent(u0, model, 1.0, load_state)
+    f_pot, _ = residual_tangent_with_contact(u0, model, 1.0, load_state, ce, cs, law)
     f0, M = inertia_force_and_mass(u0, v0, jnp.zeros_like(u0), model)
     r, M = apply_supports(f0 + f_pot, M, free)
     a0 = jnp.linalg.solve(M, -r)
     return DynState(jnp.asarray(0.0), u0, v0, a0, f_pot, load_state)
 
 
-@partial(jax.jit, static_argnames=("max_iterations",))
-def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs,
-             max_iterations: int) -> tuple[DynState, NewtonResult]:
-    """Advance by dt; returns the new state (meaningful only if converged) and Newton info."""
+@partial(jax.jit, static_argnames=("max_iterations", "law"))
+def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs, max_iterations: int,
+             ce=None, cs=None, law: str = "none") -> tuple[DynState, NewtonResult]:
+    """Advance by dt; returns the new state (meaningful only if converged) and Newton info.
+
+    ``ce``, ``cs`` and ``law`` are the contact elements, the frozen contact set and the
+    contact model ("none" without contact); contact forces enter f_pot (eq. 36).
+    """
     coeffs = hht_coefficients(alpha, dt)
 
     def residual_tangent(u):
-        r_p, K_p = potential_residual_tangent(u, model, 1.0, state.load_state)
+        r_p, K_p = residual_tangent_with_contact(u, model, 1.0, state.load_state, ce, cs, law)
         r_i, K_i = inertia_residual_tangent(u, state.u, state.v, state.a, coeffs, model)
         r = r_i + (1.0 + alpha) * r_p - alpha * state.f_pot
-        return apply_supports(r, K_i + (1.0 + alpha) * K_p, model.free)
+        return (*apply_supports(r, K_i + (1.0 + alpha) * K_p, model.free), r_p)
 
     u_pred = state.u + dt * state.v + 0.5 * dt**2 * state.a
     tol = jnp.stack([rtol, rtol * jnp.linalg.norm(state.f_pot * model.free), utol_abs])
     res = newton(residual_tangent, u_pred, max_iterations, tol)
     v, a = newmark_kinematics(res.u, state.u, state.v, state.a, coeffs)
-    f_pot, _ = potential_residual_tangent(res.u, model, 1.0, state.load_state)
-    new = DynState(state.t + dt, res.u, v, a, f_pot,
+    new = DynState(state.t + dt, res.u, v, a, res.aux,
                    update_load_state(model, res.u, state.load_state))
     return new, res

@@ -221,28 +221,42 @@ class Analysis(_Strict):
 
 
 class Contact(_Strict):
-    """Beam-to-beam contact (Sec. 2 of the paper)."""
+    """Beam-to-beam contact (Sec. 2 of the paper) between every two different beams.
+
+    ``densities``: one particle density per beam, or a single value for all.
+    ``q_reg``: regularisation gap of the coarse-grained potential [m] (default 1e-3 times
+    the smallest radius). ``max_penetration``: a step whose smallest gap falls below
+    -max_penetration is redone with half the step [m] (default: the smallest radius).
+    ``capacity``: initial length of the list of candidate element pairs (it grows by
+    itself when the broad phase finds more).
+    """
 
     model: Literal["none", "ipip", "cg"] = "none"
-    segments_per_element: Annotated[int, Field(ge=1)] = 20
+    segments_per_element: Annotated[int, Field(ge=1, le=200)] = 20
     penalty: Positive = 1.0e6
     exponent: Annotated[float, Field(gt=3.5)] = 12.0
     k: Positive = 5.0e-25
-    densities: Annotated[list[Positive], Field(min_length=2, max_length=2)] = [1.0, 1.0]
+    densities: Annotated[list[Positive], Field(min_length=1)] = [1.0]
     cutoff: Positive = 0.3
+    q_reg: Positive | None = None
+    max_penetration: Positive | None = None
+    capacity: Annotated[int, Field(ge=1)] = 32
 
 
 class Solver(_Strict):
     """Newton-Raphson and step control.
 
     rtol: residual reduction ||r|| <= rtol ||r_0||; utol: increment ||du||_inf <= utol L
-    (L the longest beam); max_cutbacks: step halvings before giving up.
+    (L the longest beam); max_cutbacks: step halvings before giving up; energy_tol
+    (dynamics): a step whose total energy grows by more than this fraction of
+    E_kin + E_strain + E_contact is redone with half the step (0: no check).
     """
 
     max_iterations: Annotated[int, Field(ge=1, le=500)] = 25
     rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-9
     utol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-11
-    max_cutbacks: Annotated[int, Field(ge=0, le=60)] = 12
+    max_cutbacks: Annotated[int, Field(ge=0, le=60)] = 16
+    energy_tol: Annotated[float, Field(ge=0.0)] = 1e-3
 
 
 class OutputPoint(_Strict):
@@ -343,6 +357,16 @@ def _check_references(case: Case) -> None:
     for i, name in enumerate(point_names):
         if point_names.count(name) > 1:
             raise CaseError(f"output.points[{i}].name: duplicate point name {name!r}")
+    nd = len(case.contact.densities)
+    if nd not in (1, len(case.beams)):
+        raise CaseError(f"contact.densities: give one value per beam ({len(case.beams)}) or "
+                        f"one for all, got {nd}")
+    if case.contact.model == "cg":
+        radii = [b.section.radius if b.section.shape == "circle" else 0.5 * b.section.height
+                 for b in case.beams]
+        if case.contact.cutoff <= 2 * min(radii):
+            raise CaseError(f"contact.cutoff: must exceed the sum of two radii "
+                            f"({2 * min(radii)}), got {case.contact.cutoff}")
     for i, b in enumerate(case.beams):
         r = b.section.radius if b.section.shape == "circle" else 0.5 * b.section.height
         if b.arc is not None and r >= b.arc.radius:

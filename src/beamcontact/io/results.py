@@ -7,6 +7,7 @@ the last accepted step.
 import csv
 import json
 import math
+import time
 from pathlib import Path
 
 import h5py
@@ -75,6 +76,8 @@ def write_summary(path: Path, summary: dict) -> None:
 
 
 class StateWriter:
+    flush_seconds = 2.0
+
     """results.h5: the model (knots, weights, reference points) and every accepted state.
 
     Layout: ``/model/<beam>/{knots, weights, reference_points}`` with attrs degree and
@@ -84,6 +87,8 @@ class StateWriter:
 
     def __init__(self, path: Path, case_text: str, beams, n_dof: int, parameter_name: str,
                  resume_after_step: int | None = None):
+        self._pending: list[dict] = []
+        self._last_flush = time.monotonic()
         if resume_after_step is not None:
             self._h5 = h5py.File(path, "a")
             st = self._h5["states"]
@@ -112,20 +117,36 @@ class StateWriter:
         self._h5.flush()
 
     def write(self, step: int, parameter: float, u: np.ndarray, **extra: np.ndarray) -> None:
-        """Append one state; ``extra`` arrays (velocities, ...) get datasets of their own."""
-        st = self._h5["states"]
-        n = st["step"].shape[0]
-        for name, value in (("step", step), ("parameter", parameter), ("u", u), *extra.items()):
-            value = np.asarray(value, dtype=float if name != "step" else np.int64)
-            if name not in st:
-                st.create_dataset(name, (0, *value.shape), maxshape=(None, *value.shape),
-                                  dtype=value.dtype)
-            st[name].resize(n + 1, axis=0)
-            st[name][n] = value
-        self._h5.flush()
+        """Queue one state; ``extra`` arrays (velocities, ...) get datasets of their own.
+
+        States reach the file in batches, at least every ``flush_seconds`` of wall time and
+        on close (also after Ctrl-C); history.csv is written every step regardless.
+        """
+        self._pending.append({"step": np.int64(step), "parameter": float(parameter),
+                              "u": np.asarray(u, float),
+                              **{k: np.asarray(v, float) for k, v in extra.items()}})
+        if time.monotonic() - self._last_flush > self.flush_seconds:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the queued states and flush the file."""
+        if self._pending:
+            st = self._h5["states"]
+            n, k = st["step"].shape[0], len(self._pending)
+            for name in self._pending[0]:
+                values = np.stack([p[name] for p in self._pending])
+                if name not in st:
+                    st.create_dataset(name, (0, *values.shape[1:]),
+                                      maxshape=(None, *values.shape[1:]), dtype=values.dtype)
+                st[name].resize(n + k, axis=0)
+                st[name][n:] = values
+            self._pending.clear()
+            self._h5.flush()
+        self._last_flush = time.monotonic()
 
     def close(self) -> None:
-        """Close the file."""
+        """Write what is queued and close the file."""
+        self.flush()
         self._h5.close()
 
 

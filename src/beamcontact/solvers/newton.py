@@ -22,52 +22,49 @@ class NewtonOptions:
     utol: float = 1e-11
 
 
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
 class NewtonResult:
-    """Solution, iterations, convergence flag and final norms (JAX arrays)."""
+    """Solution, iterations, convergence flag, final norms and the caller's auxiliary
+    output of the last residual evaluation (JAX arrays)."""
 
-    def __init__(self, u, iterations, converged, residual_norm, initial_residual_norm):
-        self.u = u
-        self.iterations = iterations
-        self.converged = converged
-        self.residual_norm = residual_norm
-        self.initial_residual_norm = initial_residual_norm
-
-
-jax.tree_util.register_pytree_node(
-    NewtonResult,
-    lambda r: ((r.u, r.iterations, r.converged, r.residual_norm, r.initial_residual_norm), None),
-    lambda _, c: NewtonResult(*c),
-)
+    u: jax.Array
+    iterations: jax.Array
+    converged: jax.Array
+    residual_norm: jax.Array
+    initial_residual_norm: jax.Array
+    aux: object = None
 
 
 def newton(residual_tangent, u0, max_iterations: int, tolerances) -> NewtonResult:
     """Solve residual(u) = 0 from u0.
 
     Args:
-        residual_tangent: u -> (r, K) with supports already applied.
+        residual_tangent: u -> (r, K, aux) with supports already applied; aux (any pytree,
+            e.g. a force needed after convergence) of the final u is returned.
         u0: predictor.
         max_iterations: the static iteration limit.
         tolerances: array (rtol, atol, utol * length), traced so no recompilation.
     """
     rtol, atol, utol_abs = tolerances[0], tolerances[1], tolerances[2]
-    r0, K0 = residual_tangent(u0)
+    r0, K0, aux0 = residual_tangent(u0)
     norm0 = jnp.linalg.norm(r0)
 
     def cond(state):
-        _, _, _, k, done, failed, _ = state
+        _, _, _, _, k, done, failed, _ = state
         return (~done) & (~failed) & (k < max_iterations)
 
     def body(state):
-        u, r, K, k, _, _, _ = state
+        u, r, K, _, k, _, _, _ = state
         du = jnp.linalg.solve(K, -r)
         u = u + du
-        r, K = residual_tangent(u)
+        r, K, aux = residual_tangent(u)
         rn = jnp.linalg.norm(r)
         done = (rn <= rtol * norm0 + atol) | (jnp.max(jnp.abs(du)) <= utol_abs)
         failed = ~jnp.isfinite(rn) | ~jnp.all(jnp.isfinite(du))
-        return u, r, K, k + 1, done & ~failed, failed, rn
+        return u, r, K, aux, k + 1, done & ~failed, failed, rn
 
     done0 = norm0 <= atol
-    state = (u0, r0, K0, jnp.asarray(0), done0, ~jnp.isfinite(norm0), norm0)
-    u, _, _, k, done, _, rn = jax.lax.while_loop(cond, body, state)
-    return NewtonResult(u, k, done, rn, norm0)
+    state = (u0, r0, K0, aux0, jnp.asarray(0), done0, ~jnp.isfinite(norm0), norm0)
+    u, _, _, aux, k, done, _, rn = jax.lax.while_loop(cond, body, state)
+    return NewtonResult(u, k, done, rn, norm0, aux)

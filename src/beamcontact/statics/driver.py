@@ -17,10 +17,12 @@ import numpy as np
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
 from beamcontact.assembly.system import (
     apply_supports,
+    contact_energy_of,
     energies,
-    potential_residual_tangent,
+    residual_tangent_with_contact,
     update_load_state,
 )
+from beamcontact.contact.problem import ContactProblem, grown_capacity
 from beamcontact.solvers.newton import NewtonOptions, newton
 
 
@@ -51,22 +53,27 @@ class StaticResult:
     compile_time: float
 
 
-@jax.jit(static_argnames=("max_iterations",))
-def _solve_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iterations):
+@jax.jit(static_argnames=("max_iterations", "law"))
+def _solve_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iterations,
+                ce=None, cs=None, law="none"):
     def residual_tangent(u):
-        r, K = potential_residual_tangent(u, model, lam, load_state)
-        return apply_supports(r, K, model.free)
+        r, K = residual_tangent_with_contact(u, model, lam, load_state, ce, cs, law)
+        return (*apply_supports(r, K, model.free), None)
 
     return newton(residual_tangent, u0, max_iterations, tolerances)
 
 
-_energies = jax.jit(energies)
+@jax.jit(static_argnames=("law",))
+def _energies(u, model, lam, state, ce=None, cs=None, law="none"):
+    return {**energies(u, model, lam, state),
+            "E_contact": contact_energy_of(u, model, ce, cs, law)}
 _update = jax.jit(update_load_state)
 
 
 def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: float,
                  max_cutbacks: int = 12,
-                 on_step: Callable[[StaticStep], None] | None = None) -> StaticResult:
+                 on_step: Callable[[StaticStep], None] | None = None,
+                 contact: ContactProblem | None = None, capacity: int = 64) -> StaticResult:
     """Ramp the loads from 0 to 1 and return the last converged state.
 
     Args:
@@ -76,6 +83,9 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         length: length scale of the increment tolerance.
         max_cutbacks: successive halvings of the increment allowed before giving up.
         on_step: called with every converged step (write results there).
+        contact: the contact problem (None: no contact). Its candidate set is found at the
+            start of every load step and frozen during Newton.
+        capacity: initial length of the contact candidate list (grows on overflow).
     """
     start = time.perf_counter()
     tol = jnp.array([options.rtol, options.atol, options.utol * length])
@@ -86,15 +96,35 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
     steps = iterations = cutbacks = 0
     consecutive = 0
     compile_time = 0.0
+    law = "none" if contact is None else contact.law
+    ce = None if contact is None else contact.elements
+    cs = None
+    margin = 0.0 if contact is None else 0.5 * contact.reach
+
+    def contact_set(u):
+        return contact.frozen_set(model.x_ref + u.reshape(-1, 2), margin, capacity)
+
+    if contact is not None:
+        cs, _ = contact_set(u)
     if on_step is not None:
         on_step(StaticStep(0, 0.0, np.zeros(model.n_dof), 0, 0,
-                           _as_floats(_energies(u, model, 0.0, state))))
+                           _step_values(u, model, 0.0, state, contact, cs)))
     while lam < 1.0 - 1e-12:
         dl = min(dlam, 1.0 - lam)
+        if contact is not None:
+            cs, count = contact_set(u)
+            if count > capacity:
+                capacity = grown_capacity(count)
+                continue
         t0 = time.perf_counter()
         res = _solve_step(u, model, jnp.asarray(lam + dl), state, tol,
-                          max_iterations=options.max_iterations)
+                          max_iterations=options.max_iterations, ce=ce, cs=cs, law=law)
         converged = bool(res.converged)
+        if converged and contact is not None:
+            x_new = model.x_ref + res.u.reshape(-1, 2)
+            if contact.check_step(x_new, cs, capacity)[0]:
+                margin *= 4.0  # the step moved further than the margin foresaw: redo it
+                continue
         if steps == 0 and cutbacks == 0:
             compile_time = time.perf_counter() - t0  # first call: compile + one solve
         iterations += int(res.iterations)
@@ -120,12 +150,19 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         state = _update(model, u, state)
         if on_step is not None:
             on_step(StaticStep(steps, lam, np.asarray(u), int(res.iterations), cutbacks,
-                               _as_floats(_energies(u, model, lam, state))))
+                               _step_values(u, model, lam, state, contact, cs)))
         dlam = min(2.0 * dlam, nominal)
     return StaticResult("completed", f"reached load factor 1 in {steps} steps", steps,
                         iterations, cutbacks, lam, np.asarray(u),
                         time.perf_counter() - start, compile_time)
 
 
-def _as_floats(d: dict) -> dict:
-    return {k: float(v) for k, v in d.items()}
+def _step_values(u, model, lam, state, contact, cs) -> dict:
+    if contact is None:
+        d = {k: float(v) for k, v in _energies(u, model, lam, state).items()}
+        d["min_gap"] = float("nan")
+        return d
+    d = {k: float(v) for k, v in _energies(u, model, lam, state, contact.elements, cs,
+                                           contact.law).items()}
+    d["min_gap"] = contact.min_gap(model.x_ref + u.reshape(-1, 2), cs)
+    return d

@@ -1,0 +1,98 @@
+"""Time the bundled free-fall benchmark (coarse-grained and IPIP contact), no file output.
+
+Prints: simulated time, steps, Newton iterations, cut-backs, compile time, wall time after
+compilation, per step and per iteration, and the share of one Newton iteration spent in
+contact (assembly with and without the contact blocks, at the state just after impact).
+
+    python benchmarks/free_fall.py [--t-end 2.0]
+"""
+
+import argparse
+import time
+import tomllib
+from pathlib import Path
+
+import beamcontact
+
+beamcontact.enable_x64()
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+
+from beamcontact.assembly.build import build_model  # noqa: E402
+from beamcontact.assembly.model import initial_load_state  # noqa: E402
+from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
+from beamcontact.contact.problem import build_contact  # noqa: E402
+from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities  # noqa: E402
+from beamcontact.dynamics.hht import initial_state  # noqa: E402
+from beamcontact.io.case import parse_case  # noqa: E402
+from beamcontact.solvers.newton import NewtonOptions  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _time(f, n=30):
+    jax.block_until_ready(f())
+    t0 = time.perf_counter()
+    for _ in range(n):
+        r = f()
+    jax.block_until_ready(r)
+    return (time.perf_counter() - t0) / n
+
+
+def run(model_name: str, t_end: float) -> None:
+    raw = tomllib.loads((REPO / f"examples/free_fall/case_{model_name}.toml").read_text())
+    raw["analysis"]["t_end"] = t_end
+    case = parse_case(raw)
+    model, disc = build_model(case)
+    contact = build_contact(case, disc)
+    an = case.analysis
+    v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
+    cs0, cap = contact.grown_set(model.x_ref, 0.0, case.contact.capacity)
+    state = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model),
+                          contact.elements, cs0, contact.law)
+    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, 0.0, case.solver.utol)
+    kept = {}
+
+    def keep(s):
+        if "impact" not in kept and s.diagnostics["E_contact"] > 1e-6:
+            kept["impact"] = s.state
+
+    t0 = time.perf_counter()
+    res = solve_dynamic(model, state, an.t_end, an.dt, an.alpha, opts, disc.length_scale,
+                        case.solver.max_cutbacks, contact=contact, capacity=cap,
+                        energy_tol=case.solver.energy_tol, on_step=keep)
+    wall = time.perf_counter() - t0
+    run_time = wall - res.compile_time
+    share = float("nan")
+    if "impact" in kept:
+        u = kept["impact"].u
+        x = model.x_ref + u.reshape(-1, 2)
+        cs, _ = contact.grown_set(x, 0.0, cap)
+        ls = initial_load_state(model)
+        with_c = jax.jit(lambda u, cs: residual_tangent_with_contact(
+            u, model, 1.0, ls, contact.elements, cs, contact.law))
+        without = jax.jit(lambda u: residual_tangent_with_contact(
+            u, model, 1.0, ls, None, None, "none"))
+        tc, tn = _time(lambda: with_c(u, cs)), _time(lambda: without(u))
+        share = (tc - tn) / tc
+    print(f"| {model_name:<4} | {t_end:4.1f} | {res.steps:6d} | {res.iterations:6d} | "
+          f"{res.cutbacks:5d} | {res.compile_time:6.2f} | {run_time:7.2f} | "
+          f"{1e3 * run_time / res.steps:6.2f} | {1e3 * run_time / max(res.iterations, 1):6.2f}"
+          f" | {100 * share:5.1f} % | {res.status} |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--t-end", type=float, default=2.0)
+    args = ap.parse_args()
+    print(f"JAX {jax.__version__} on {jax.devices()[0].platform}")
+    print("| model | t_end [s] | steps | Newton it. | cut-backs | compile [s] | run [s] | "
+          "per step [ms] | per iteration [ms] | contact share | status |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for name in ("cg", "ipip"):
+        run(name, args.t_end)
+
+
+if __name__ == "__main__":
+    main()

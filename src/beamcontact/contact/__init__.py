@@ -1,0 +1,1 @@
+"""Beam-to-beam contact (paper Sec. 2): integration points, broad phase, pair laws."""

@@ -1,0 +1,77 @@
+"""Contact integration points (paper Sec. 2.1, Fig. 2) and the element data of contact.
+
+Each element is split into ``segments_per_element`` segments of equal parameter length,
+with one point at the middle of each and the segment's reference arc length as weight.
+All elements of all beams are numbered globally; basis rows are padded to the largest
+number of local control points (padding rows of R are zero).
+"""
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beamcontact.assembly.model import as_float
+from beamcontact.spline import nurbs_basis_derivatives
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class ContactElements:
+    """Per global element: shapes conn, loc_valid (E, n_loc); R (E, n_s, n_loc);
+    w (E, n_s); radius, beta (E,); beam (E,) beam index; pairs (P + 1, 2) all element
+    pairs of different beams, the last row a sentinel (E, E)."""
+
+    conn: jax.Array
+    loc_valid: jax.Array
+    R: jax.Array
+    w: jax.Array
+    radius: jax.Array
+    beta: jax.Array
+    beam: jax.Array
+    pairs: jax.Array
+
+    @property
+    def n_elements(self) -> int:
+        """Number of elements of all beams."""
+        return self.conn.shape[0]
+
+
+def contact_elements(disc, segments: int, betas) -> ContactElements:
+    """Contact points of every element of every beam (host-side, once)."""
+    n_loc = max(b.curve.degree + 1 for b in disc.beams)
+    conn, valid, Rs, ws, radius, beta, beam_of = [], [], [], [], [], [], []
+    x, gw = np.polynomial.legendre.leggauss(8)
+    for b_idx, info in enumerate(disc.beams):
+        curve, mesh = info.curve, info.mesh
+        p = curve.degree
+        for e, (a, b) in enumerate(zip(mesh.breaks[:-1], mesh.breaks[1:], strict=True)):
+            edges = np.linspace(a, b, segments + 1)
+            R = np.zeros((segments, n_loc))
+            w = np.zeros(segments)
+            for s in range(segments):
+                u0, u1 = edges[s], edges[s + 1]
+                _, d = nurbs_basis_derivatives(curve.knots, p, curve.weights, 0.5 * (u0 + u1))
+                R[s, : p + 1] = d[0]
+                uq = 0.5 * (u1 - u0) * x + 0.5 * (u0 + u1)
+                speed = np.linalg.norm(curve.evaluate(uq, 1)[1], axis=1)
+                w[s] = 0.5 * (u1 - u0) * speed @ gw
+            c = np.zeros(n_loc, dtype=np.int64)
+            c[: p + 1] = mesh.conn[e] + info.offset
+            conn.append(c)
+            valid.append(np.arange(n_loc) < p + 1)
+            Rs.append(R)
+            ws.append(w)
+            radius.append(info.section.half_depth)
+            beta.append(betas[b_idx])
+            beam_of.append(b_idx)
+    beam_of = np.array(beam_of)
+    n = len(beam_of)
+    i, j = np.triu_indices(n, k=1)
+    cross = beam_of[i] != beam_of[j]
+    pairs = np.vstack([np.column_stack([i[cross], j[cross]]), [[n, n]]]).astype(np.int64)
+    return ContactElements(conn=jnp.asarray(np.array(conn)), loc_valid=jnp.asarray(valid),
+                           R=as_float(Rs), w=as_float(ws), radius=as_float(radius),
+                           beta=as_float(beta), beam=jnp.asarray(beam_of),
+                           pairs=jnp.asarray(pairs))

@@ -1,0 +1,323 @@
+"""Contact models (paper Sec. 2): laws, derivatives, broad phase, and mechanical checks."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from _builders import beam
+
+from beamcontact.assembly.build import build_model, point_sampler
+from beamcontact.assembly.model import initial_load_state
+from beamcontact.contact.blocks import (
+    ContactSet,
+    block_gaps,
+    block_weights_cg,
+    contact_energy,
+    contact_residual_tangent,
+)
+from beamcontact.contact.broadphase import candidate_pairs, element_boxes
+from beamcontact.contact.laws import cg_constant, cg_potential
+from beamcontact.contact.problem import build_contact
+from beamcontact.contact.select import closest_pair_weights
+from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities
+from beamcontact.dynamics.hht import initial_state
+from beamcontact.io.case import parse_case
+from beamcontact.solvers.newton import NewtonOptions
+from beamcontact.statics.driver import solve_static
+
+
+# --- eq. (9) against brute-force integration of eq. (8) ----------------------------------
+
+def _disk_disk_brute_force(R1, R2, q, m, n=24):
+    """int_{disk1} int_{disk2} |x1 - x2|^-m dA1 dA2 for coplanar disks at gap q.
+
+    Inner integral over disk 1 in polar coordinates around x2, radial part exact:
+    int rho^(1-m) d rho = (rho_in^(2-m) - rho_out^(2-m)) / (m - 2); the remaining three
+    dimensions by Gauss-Legendre on meshes graded geometrically towards the closest points.
+    """
+    d = R1 + R2 + q
+    x, w = np.polynomial.legendre.leggauss(n)
+
+    def graded(a, b, h):  # intervals a, a+h, a+2h, a+4h, ... b
+        edges = [a]
+        step = h
+        while edges[-1] + step < b:
+            edges.append(edges[-1] + step)
+            step *= 2
+        edges.append(b)
+        e = np.array(edges)
+        lo, hi = e[:-1, None], e[1:, None]
+        return ((hi - lo) / 2 * x + (hi + lo) / 2).ravel(), ((hi - lo) / 2 * w).ravel()
+
+    # disk 2 centred at (d, 0): points x2 = (d - R2 + s, y), s in [0, 2 R2]
+    s, ws = graded(0.0, 2 * R2, q)
+    total = 0.0
+    for si, wsi in zip(s, ws, strict=True):
+        half = np.sqrt(max(R2**2 - (R2 - si) ** 2, 0.0))
+        yp, wy = graded(0.0, half, q)
+        y = np.concatenate([-yp, yp])
+        wy = np.concatenate([wy, wy])
+        X, Y = d - R2 + si, y
+        D = np.hypot(X, Y)
+        amax = np.arcsin(np.minimum(R1 / D, 1.0))
+        ph, wph = graded(0.0, 1.0, q / R1)  # fraction of amax, graded towards 0
+        phi = ph[None, :] * amax[:, None]
+        wphi = wph[None, :] * amax[:, None]
+        disc = np.sqrt(np.maximum(R1**2 - (D[:, None] * np.sin(phi)) ** 2, 0.0))
+        rin = D[:, None] * np.cos(phi) - disc
+        rout = D[:, None] * np.cos(phi) + disc
+        inner = 2 * np.sum(wphi * (rin ** (2 - m) - rout ** (2 - m)) / (m - 2), axis=1)
+        total += wsi * np.sum(wy * inner)
+    return total
+
+
+@pytest.mark.parametrize(("R1", "R2"), [(0.1, 0.1), (0.05, 0.2)])
+def test_section_section_potential_small_gap_asymptotics(R1, R2):
+    """Eq. (9)'s integrand k b1 b2 C q^(7/2-m) is the small-gap limit of eq. (8) for two
+    coplanar disks: the relative error shrinks like q/R."""
+    m = 12.0
+    errors = []
+    for q_rel in (0.1, 0.03, 0.01):
+        q = q_rel * min(R1, R2)
+        exact = _disk_disk_brute_force(R1, R2, q, m)
+        approx = float(cg_constant(m, R1, R2)) * q ** (3.5 - m)
+        errors.append(abs(approx / exact - 1.0))
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 0.02
+    # first-order convergence in q/R
+    assert 0.6 < np.log(errors[1] / errors[2]) / np.log(3.0) < 1.4
+
+
+def test_regularised_potential_is_c2_and_finite():
+    amp, m, q_reg = 2.0, 12.0, 1e-3
+    f = lambda q: cg_potential(q, amp, m, q_reg)  # noqa: E731
+    for k in range(3):
+        g = f
+        for _ in range(k):
+            g = jax.grad(g)
+        left, right = float(g(q_reg - 1e-12)), float(g(q_reg + 1e-12))
+        assert abs(left - right) < 1e-6 * abs(right)
+    for q in (0.0, -0.05, -1.0):
+        for g in (f, jax.grad(f), jax.grad(jax.grad(f))):
+            assert np.isfinite(float(g(q)))
+
+
+# --- contact blocks: derivatives, no NaN -------------------------------------------------
+
+def _two_beams(law, dy=-0.19, segments=5, **contact):
+    raw = {"analysis": {"kind": "static"},
+           "beams": [beam("a", line=([0, 0], [2, 0]), degree=4, elements=4, radius=0.1),
+                     beam("b", line=([0.5, 0.3], [1.7, 0.15]), degree=3, elements=3,
+                          radius=0.1)],
+           "contact": {"model": law, "segments_per_element": segments, **contact}}
+    case = parse_case(raw)
+    model, disc = build_model(case)
+    problem = build_contact(case, disc)
+    x = np.asarray(model.x_ref).copy()
+    x[disc.beam("b").offset:, 1] += dy
+    return model, problem, jnp.asarray(x)
+
+
+@pytest.mark.parametrize("law", ["cg", "ipip"])
+def test_contact_residual_and_tangent_against_central_differences(law):
+    model, problem, x = _two_beams(law, q_reg=0.02)
+    cs, _ = problem.grown_set(x, 0.05, 8)
+    assert float(jnp.max(cs.W)) > 0
+    energy = jax.jit(lambda y: contact_energy(y.reshape(-1, 2), problem.elements, cs, law))
+    r, K = jax.jit(contact_residual_tangent, static_argnums=(3, 4))(
+        x, problem.elements, cs, law, model.n_dof)
+    y0 = np.asarray(x).ravel()
+    h = 1e-6
+    fd_r = np.array([(energy(y0 + h * e) - energy(y0 - h * e)) / (2 * h)
+                     for e in np.eye(y0.size)])
+    np.testing.assert_allclose(r, fd_r, atol=1e-6 * np.abs(fd_r).max())
+    grad = jax.jit(jax.grad(energy))
+    fd_K = np.array([(grad(y0 + h * e) - grad(y0 - h * e)) / (2 * h)
+                     for e in np.eye(y0.size)])
+    np.testing.assert_allclose(K, fd_K, atol=1e-5 * np.abs(fd_K).max())
+
+
+@pytest.mark.parametrize("law", ["cg", "ipip"])
+@pytest.mark.parametrize("dy", [-0.2, -0.25, -0.35])  # touching, penetrating, deep
+def test_no_nan_at_zero_or_negative_gap(law, dy):
+    model, problem, x = _two_beams(law, dy=dy)
+    cs, _ = problem.grown_set(x, 0.05, 8)
+    r, K = contact_residual_tangent(x, problem.elements, cs, law, model.n_dof)
+    e = contact_energy(x, problem.elements, cs, law)
+    assert np.isfinite(float(e)) and np.all(np.isfinite(r)) and np.all(np.isfinite(K))
+    assert float(jnp.min(block_gaps(x, problem.elements, cs.pairs))) <= 0.0 + 1e-12 or dy > -0.2
+
+
+# --- broad phase against brute force ------------------------------------------------------
+
+def test_broad_phase_equals_brute_force():
+    rng = np.random.default_rng(7)
+    beams = []
+    for k in range(4):
+        a = rng.uniform(0, 3, 2)
+        b = a + rng.uniform(-2, 2, 2)
+        beams.append(beam(f"b{k}", line=(a.tolist(), b.tolist()), degree=3,
+                          elements=int(rng.integers(2, 6)), radius=0.05))
+    case = parse_case({"analysis": {"kind": "static"}, "beams": beams,
+                       "contact": {"model": "cg", "cutoff": 0.4, "segments_per_element": 6}})
+    model, disc = build_model(case)
+    ce = build_contact(case, disc).elements
+    x = np.asarray(model.x_ref)
+    margin = 0.2
+    pairs, count = jax.jit(candidate_pairs, static_argnums=3)(jnp.asarray(x), ce, margin, 256)
+    found = {tuple(p) for p in np.asarray(pairs)[: int(count)]}
+    # oracle 1: the same box test by plain loops over every pair of elements
+    conn, valid, beam_of = map(np.asarray, (ce.conn, ce.loc_valid, ce.beam))
+    brute = set()
+    E = len(beam_of)
+    for i in range(E):
+        for j in range(i + 1, E):
+            if beam_of[i] == beam_of[j]:
+                continue
+            pi, pj = x[conn[i][valid[i]]], x[conn[j][valid[j]]]
+            if np.all(pi.min(0) - margin <= pj.max(0) + margin) and np.all(
+                    pj.min(0) - margin <= pi.max(0) + margin):
+                brute.add((i, j))
+    assert found == brute and int(count) == len(brute)
+    # oracle 2: every pair of contact points closer than 2 margin lies in a candidate block
+    R = np.asarray(ce.R)
+    pts = np.einsum("esk,ekd->esd", R, x[conn])
+    for i in range(E):
+        for j in range(i + 1, E):
+            if beam_of[i] != beam_of[j]:
+                dmin = np.min(np.linalg.norm(pts[i][:, None] - pts[j][None], axis=-1))
+                if dmin < 2 * margin:
+                    assert (i, j) in found
+    lo, hi = element_boxes(jnp.asarray(x), ce, 0.0)
+    assert np.all(np.asarray(lo) <= pts.min(axis=1) + 1e-12)  # convex hull property
+    assert np.all(np.asarray(hi) >= pts.max(axis=1) - 1e-12)
+
+
+def test_ipip_plateau_takes_the_middle_pairs():
+    """Straight parallel beams: one contact zone; an even plateau gives its two middle
+    pairs with weight 1/2 each (symmetric), an odd one its middle pair."""
+    for n_upper, expected in ((4, [(0.5, 0.5)]), (5, [(1.0,)])):
+        # plateau along the diagonal of a 1 x 1 block pair, n_upper points on the valley
+        ns = n_upper
+        q = np.full((1, ns, ns), 1.0)
+        q[0, np.arange(ns), np.arange(ns)] = -0.01
+        W = closest_pair_weights(q, np.array([[0, 1]]), np.array([0, 1]), np.array([0, 0]),
+                                 np.array([1, 1]), q_active=0.1)
+        weights = W[0][W[0] > 0]
+        assert sorted(weights) == sorted(expected[0])
+        idx = np.argwhere(W[0] > 0)
+        assert np.all(idx[:, 0] == idx[:, 1])
+        mid = (ns - 1) / 2
+        assert np.isclose(np.mean(idx[:, 0]), mid)
+
+
+# --- statics: IPIP closed form -----------------------------------------------------------
+
+def test_ipip_static_reaction_and_penetration():
+    """A stiff straight beam pinned at its left end rests with its middle on the apex of a
+    stiff clamped arc; a force F at that middle point: moment equilibrium about the pin
+    gives the contact reaction F, hence a penetration F / eps."""
+    R, eps, F = 0.05, 1.0e6, 800.0
+    Rc, half = 5.0, 0.2
+    arc = {"center": [0.0, -Rc], "radius": Rc, "start_angle": np.pi / 2 - half,
+           "end_angle": np.pi / 2 + half}
+    h = 2 * R - 1e-7  # a hair of initial overlap so the contact stiffness is there at once
+    raw = {"analysis": {"kind": "static", "load_steps": 2},
+           "beams": [{**beam("arc", degree=4, elements=1, radius=R, E=1e15,
+                             supports=[{"at": "start", "type": "clamped"},
+                                       {"at": "end", "type": "clamped"}]), "arc": arc},
+                     beam("bar", line=([-1.0, h], [1.0, h]), degree=4, elements=1, radius=R,
+                          E=1e15, supports=[{"at": "start", "type": "pinned"}])],
+           "loads": [{"beam": "bar", "at": 0.5, "force": [0.0, -F]}],
+           "contact": {"model": "ipip", "penalty": eps, "segments_per_element": 21}}
+    case = parse_case(raw)
+    model, disc = build_model(case)
+    contact = build_contact(case, disc)
+    steps = []
+    res = solve_static(model, 2, NewtonOptions(), disc.length_scale, on_step=steps.append,
+                       contact=contact)
+    assert res.status == "completed", res.message
+    last = steps[-1].energies
+    np.testing.assert_allclose(last["min_gap"], -F / eps, rtol=1e-4)
+    np.testing.assert_allclose(last["E_contact"], F**2 / (2 * eps), rtol=2e-4)
+
+
+# --- dynamics: collisions ----------------------------------------------------------------
+
+def _collision_case(law, swap=False, q_reg=None):
+    lower = beam("lower", line=([0.0, 0.0], [2.0, 0.0]), degree=4, elements=4, radius=0.05,
+                 E=1e7, density=1000.0, continuity=1)
+    upper = {**beam("upper", line=([0.6, 0.16], [1.6, 0.22]), degree=4, elements=2,
+                    radius=0.05, E=1e7, density=1000.0, continuity=1),
+             "initial_velocity": [0.3, -2.0]}
+    beams = [upper, lower] if swap else [lower, upper]
+    return parse_case({"analysis": {"kind": "dynamic", "t_end": 0.08, "dt": 1e-3,
+                                    "alpha": -0.1},
+                       "beams": beams,
+                       "contact": {"model": law, "segments_per_element": 10,
+                                   "penalty": 1e5, "cutoff": 0.15, "k": 1e-22,
+                                   **({"q_reg": q_reg} if q_reg else {})}})
+
+
+def _run_collision(case):
+    model, disc = build_model(case)
+    contact = build_contact(case, disc)
+    v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
+    cs0, _ = contact.grown_set(model.x_ref, 0.0, 8)
+    s0 = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model),
+                       contact.elements, cs0, contact.law)
+    rows = []
+    res = solve_dynamic(model, s0, case.analysis.t_end, case.analysis.dt, case.analysis.alpha,
+                        NewtonOptions(rtol=1e-11), disc.length_scale, contact=contact,
+                        capacity=8, on_step=lambda s: rows.append(
+                            (s.t, np.asarray(s.state.u), s.diagnostics)))
+    assert res.status == "completed", res.message
+    return model, disc, rows
+
+
+@pytest.mark.parametrize("law", ["cg", "ipip"])
+def test_free_collision_conserves_linear_momentum(law):
+    model, disc, rows = _run_collision(_collision_case(law))
+    m_upper = 1000.0 * np.pi * 0.05**2 * np.hypot(1.0, 0.06)
+    p0 = m_upper * np.array([0.3, -2.0])
+    gaps = np.array([d["min_gap"] for _, _, d in rows])
+    assert gaps.min() < 0.01  # they did collide
+    assert max(d["E_contact"] for _, _, d in rows) > 0
+    for _, _, d in rows:
+        np.testing.assert_allclose([d["p_x"], d["p_y"]], p0, atol=1e-8 * np.linalg.norm(p0))
+    # the lower beam was set in motion: momentum went across the contact
+    lower_p = rows[-1][2]
+    assert lower_p is not None
+
+
+@pytest.mark.parametrize("law", ["cg", "ipip"])
+def test_swapping_beam_order_gives_the_same_motion(law):
+    """Same motion to round-off. The coarse-grained case uses a larger q_reg so that no
+    step is cut (a cut-back decided by round-off would change the step sequence)."""
+    m1, d1, rows1 = _run_collision(_collision_case(law, q_reg=2e-3))
+    m2, d2, rows2 = _run_collision(_collision_case(law, swap=True, q_reg=2e-3))
+    assert len(rows1) == len(rows2)
+    for (_, u1, _), (_, u2, _) in zip(rows1, rows2, strict=True):
+        for name in ("lower", "upper"):
+            for f in (0.0, 0.5, 1.0):
+                p1 = _point(m1, d1, u1, name, f)
+                p2 = _point(m2, d2, u2, name, f)
+                np.testing.assert_allclose(p1, p2, atol=1e-9)
+
+
+def _point(model, disc, u, name, f):
+    idx, R = point_sampler(disc, name, f)
+    return R @ (np.asarray(model.x_ref) + u.reshape(-1, 2))[idx]
+
+
+def test_weights_of_cg_blocks_are_reference_arc_lengths():
+    model, problem, x = _two_beams("cg")
+    ce = problem.elements
+    w = np.asarray(ce.w)
+    # every beam's weights add up to its length
+    lengths = [np.sum(w[np.asarray(ce.beam) == b]) for b in range(2)]
+    np.testing.assert_allclose(lengths, [2.0, np.hypot(1.2, 0.15)], rtol=1e-12)
+    pairs = jnp.asarray([[0, 4], [ce.n_elements, ce.n_elements]])
+    W = np.asarray(block_weights_cg(ce, pairs))
+    np.testing.assert_allclose(W[0], np.outer(w[0], w[4]))
+    assert np.all(W[1] == 0)

@@ -1,0 +1,64 @@
+"""The free-fall benchmark family: first impact from free fall, outputs of contact runs."""
+
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from beamcontact.io.case import parse_case
+from beamcontact.io.results import read_history
+from beamcontact.runner import run_case
+
+REPO = Path(__file__).resolve().parents[1]
+CASES = {m: REPO / "examples" / "free_fall" / f"case_{m}.toml" for m in ("cg", "ipip")}
+
+
+def _small_drop(model: str) -> dict:
+    """The benchmark shrunk: lower beam 4 m (8 elements), upper 1 m, surface gap 0.3 m."""
+    raw = tomllib.loads(CASES[model].read_text())
+    raw["analysis"]["t_end"] = 0.26
+    lower, upper = raw["beams"]
+    lower["line"] = {"start": [0.0, 0.0], "end": [4.0, 0.0]}
+    lower["elements"] = 8
+    upper["line"] = {"start": [1.5, 0.5], "end": [2.5, 0.5]}
+    upper["elements"] = 2
+    raw["output"]["vtk_interval"] = 0.05
+    return raw
+
+
+@pytest.mark.parametrize("model", ["cg", "ipip"])
+def test_first_impact_when_free_fall_says(tmp_path, model):
+    raw = _small_drop(model)
+    summary = run_case(parse_case(raw), "", tmp_path / "out")
+    assert summary["status"] == "completed", summary["message"]
+    g = 9.81
+    # impact = first step with a gap below 1 % of the radius (0.1 m)
+    t_theory = np.sqrt(2 * (0.3 - 0.001) / g)
+    dt = raw["analysis"]["dt"]
+    assert abs(summary["first_impact_time"] - t_theory) <= dt + 1e-12
+    h = read_history(tmp_path / "out" / "history.csv")
+    before = h["t"] < t_theory - 2 * dt
+    # free fall up to the impact: the gap closes as g t^2 / 2
+    np.testing.assert_allclose(h["min_gap"][before][h["min_gap"][before] > 0.3 - 0.29],
+                               (0.3 - 0.5 * g * h["t"][before] ** 2)[
+                                   h["min_gap"][before] > 0.3 - 0.29], atol=1e-9)
+    out = tmp_path / "out"
+    for name in ("animation.gif", "plots/snapshots.png", "plots/points.png", "beams.pvd"):
+        assert (out / name).stat().st_size > 0, name
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("first_impact_time", "first_amplitude", "min_gap", "max_penetration"):
+        assert key in s
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model", ["cg"])
+def test_benchmark_first_impact_and_amplitude(tmp_path, model):
+    """The bundled benchmark: impact at 0.75 s, first amplitude of A about -2.25 m (the
+    calibration target of examples/free_fall/calibrate.py)."""
+    raw = tomllib.loads(CASES[model].read_text())
+    raw["analysis"]["t_end"] = 1.4
+    summary = run_case(parse_case(raw), "", tmp_path / "out")
+    assert abs(summary["first_impact_time"] - 0.75) <= 1e-3
+    assert abs(summary["first_amplitude"]["A"]["uy"] + 2.25) < 0.03
