@@ -109,6 +109,10 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, motion_facto
         gap = jnp.min(block_gaps(x_new, ce, cs.pairs))
         report["min_gap"] = jnp.where(jnp.isfinite(gap), gap, box_gap_lower_bound(x_new, ce))
     report["diagnostics"] = diagnostics(new, model, ce, cs, law)
+    # the energy test compares both states under the same frozen set: a change of the set
+    # between steps (IPIP re-selects its closest pairs) is a jump of the model, not an
+    # integration error
+    report["E_contact_before"] = contact_energy_of(state.u, model, ce, cs, law)
     return new, res, cs, report
 
 
@@ -139,7 +143,7 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
                   dt_start: float | None = None, step0: int = 0,
                   on_step: Callable[[DynamicStep], None] | None = None,
                   contact: ContactProblem | None = None,
-                  capacity: int = 64, energy_tol: float = 1e-3) -> DynamicResult:
+                  capacity: int = 64, energy_tol: float = 1e-2) -> DynamicResult:
     """Integrate from ``state`` to ``t_end``.
 
     Args:
@@ -188,8 +192,11 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
                 capacity = grown_capacity(count)
                 continue
         t0 = time.perf_counter()
+        # the acceleration is 1/(beta h^2) times a displacement difference: the increment
+        # test tightens like h^2 for cut steps, down to a round-off floor of the positions
+        utol_h = jnp.maximum(utol * min(1.0, (h / dt) ** 2), 1e-13 * length)
         new, res, cs, report = fused_step(
-            state, model, jnp.asarray(h), alpha_arr, rtol, utol, jnp.asarray(motion_factor),
+            state, model, jnp.asarray(h), alpha_arr, rtol, utol_h, jnp.asarray(motion_factor),
             ce, params, reach, cs, max_iterations=options.max_iterations, law=law,
             capacity=capacity)
         res_host, report = jax.device_get((res, report))
@@ -214,10 +221,11 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
         res = res_host
         diag = {k: float(v) for k, v in report["diagnostics"].items()}
         e_new = _energy_totals(diag)
+        e_before = e_prev[0] - e_prev[2] + float(report["E_contact_before"])
         if converged and energy_tol > 0 and (
-                e_new[0] - e_prev[0] > energy_tol * max(e_new[1], e_prev[1], 1e-300)):
+                e_new[0] - e_before > energy_tol * max(e_new[1], e_prev[1], 1e-300)):
             converged = False
-            reason = (f"the total energy grew by {e_new[0] - e_prev[0]:.3g} J in one step "
+            reason = (f"the total energy grew by {e_new[0] - e_before:.3g} J in one step "
                       f"(more than energy_tol = {energy_tol:g} of {max(e_new[1], e_prev[1]):.3g} J)")
         if not converged:
             cutbacks += 1
@@ -255,10 +263,10 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
                          compile_time)
 
 
-def _energy_totals(d: dict) -> tuple[float, float]:
-    """(total energy, scale of the exchanged energies E_kin + E_strain + E_contact)."""
+def _energy_totals(d: dict) -> tuple[float, float, float]:
+    """(total energy, scale E_kin + E_strain + |E_contact|, E_contact)."""
     total = d["E_kin"] + d["E_strain"] + d["E_gravity"] + d["E_ext"] + d["E_contact"]
-    return total, d["E_kin"] + d["E_strain"] + abs(d["E_contact"])
+    return total, d["E_kin"] + d["E_strain"] + abs(d["E_contact"]), d["E_contact"]
 
 
 def _step_size(t: float, t_end: float, dt_cur: float) -> float:

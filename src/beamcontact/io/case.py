@@ -256,7 +256,7 @@ class Solver(_Strict):
     rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-9
     utol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-11
     max_cutbacks: Annotated[int, Field(ge=0, le=60)] = 16
-    energy_tol: Annotated[float, Field(ge=0.0)] = 1e-3
+    energy_tol: Annotated[float, Field(ge=0.0)] = 1e-2
 
 
 class OutputPoint(_Strict):
