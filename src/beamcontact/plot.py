@@ -68,7 +68,7 @@ def plot_energies(history: dict[str, np.ndarray], path: Path, title: str = "") -
 
 def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[float],
                    path: Path, title: str = "") -> None:
-    """A grid of snapshots of all beams (paper Fig. 6); beams drawn with their thickness."""
+    """A grid of snapshots of all beams' axes (paper Fig. 6); ``radii`` pad the view."""
     n = len(frames)
     cols = min(n, 3)
     rows = int(np.ceil(n / cols))
@@ -77,8 +77,8 @@ def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[flo
     pad = 0.05 * max(hi - lo) + max(radii)
     fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.6 * rows), squeeze=False)
     for ax, (t, beams) in zip(axes.ravel(), frames, strict=False):
-        for k, (pts, r) in enumerate(zip(beams, radii, strict=True)):
-            ax.plot(pts[:, 0], pts[:, 1], lw=max(1.0, 2 * r * 72 / 0.5), solid_capstyle="round",
+        for k, pts in enumerate(beams):
+            ax.plot(pts[:, 0], pts[:, 1], lw=2.5, solid_capstyle="round",
                     color=plt.get_cmap("tab10")(k))
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)

@@ -363,8 +363,8 @@ def contact_summary(h: dict, points: list[str], contact) -> dict:
     """First impact, first amplitude of each output point after it, gap extremes.
 
     The first impact is the first accepted step whose smallest gap is below 1 % of the
-    smallest contact radius; the first amplitude of a point is its first local extremum
-    of u_y after that time (value and time).
+    smallest contact radius; the first amplitude of a point is the extreme u_y of its
+    first excursion after that time (until u_y changes sign, or the end of the run).
     """
     if contact is None:
         return {}
@@ -379,9 +379,10 @@ def contact_summary(h: dict, points: list[str], contact) -> dict:
         for name in points:
             uy = h[f"{name}_uy"][hit[0]:]
             t = h["t"][hit[0]:]
-            dv = np.diff(uy)
-            turn = np.where(np.sign(dv[1:]) != np.sign(dv[:-1]))[0]
-            if turn.size:
-                k = turn[0] + 1
-                out["first_amplitude"][name] = {"uy": float(uy[k]), "t": float(t[k])}
+            # the first excursion after the impact: until u_y changes sign (or the end)
+            sign = np.sign(uy[np.argmax(np.abs(uy) > 1e-9 * (1 + np.abs(uy).max()))])
+            back = np.where(np.sign(uy) == -sign)[0]
+            end = back[back > np.argmax(np.abs(uy) > 0)][0] if back.size else len(uy)
+            k = int(np.argmax(np.abs(uy[:end])))
+            out["first_amplitude"][name] = {"uy": float(uy[k]), "t": float(t[k])}
     return out
