@@ -92,14 +92,16 @@ def test_restart_rejects_a_changed_model(tmp_path):
 
 
 def test_cutback_and_recovery_of_the_nominal_step(tmp_path):
-    """Two Newton iterations are not enough for a 5 ms step of this stiff beam: the driver
-    halves the step, succeeds, and grows back to the nominal step."""
+    """Three Newton iterations are not enough for a 10 ms step of this stiff beam: the driver
+    halves the step, succeeds, and grows back to the nominal step. (The energy test is off:
+    it would also, rightly, reject some of these coarse steps.)"""
     out = tmp_path / "o"
-    case = _case(tmp_path, "cut", **{"analysis.dt": 5e-3, "solver.max_iterations": 2})
+    case = _case(tmp_path, "cut", **{"analysis.dt": 1e-2, "solver.max_iterations": 3,
+                                     "solver.energy_tol": 0.0})
     proc = _run(case, "--out", out)
     assert proc.returncode == 0, proc.stderr
     h = read_history(out / "history.csv")
     summary = json.loads((out / "summary.json").read_text())
     assert summary["cutbacks"] > 0 and h["cutbacks"][-1] == summary["cutbacks"]
-    assert h["dt"][1:].min() < 5e-3 and np.isclose(h["dt"][1:].max(), 5e-3)
+    assert h["dt"][1:].min() < 1e-2 and np.isclose(h["dt"][1:].max(), 1e-2)
     assert abs(h["t"][-1] - 0.1) < 1e-12
