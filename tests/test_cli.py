@@ -92,6 +92,13 @@ def test_run_end_moment_example_closes_circle(tmp_path):
         assert f["states/u"].shape == (11, 38)
         np.testing.assert_allclose(f["states/parameter"][:], h["load_factor"])
         assert "cantilever" in f["model"]
+    # overlay of runs (paper Figs. 7-10)
+    png = tmp_path / "cmp.png"
+    proc = _cli("compare", out, out, "--point", "tip", "--label", "a", "--label", "b",
+                "--out", png)
+    assert proc.returncode == 0 and png.stat().st_size > 0, proc.stderr
+    proc = _cli("compare", out, "--point", "nowhere", "--out", png)
+    assert proc.returncode == 2 and "no column 'nowhere_uy'" in proc.stderr
 
 
 def test_check_accepts_valid_case():

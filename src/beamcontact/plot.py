@@ -32,6 +32,18 @@ def plot_shapes(shapes: list[tuple[str, list[np.ndarray]]], reference: list[np.n
     plt.close(fig)
 
 
+def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str) -> None:
+    """Labels, grid and legend; save and close."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
 def plot_point_histories(history: dict[str, np.ndarray], abscissa: str, points: list[str],
                          path: Path, title: str = "") -> None:
     """Displacements u_x, u_y of every output point against ``abscissa``."""
@@ -39,14 +51,8 @@ def plot_point_histories(history: dict[str, np.ndarray], abscissa: str, points: 
     for name in points:
         for comp, style in (("ux", "--"), ("uy", "-")):
             ax.plot(history[abscissa], history[f"{name}_{comp}"], style, label=f"{name} {comp}")
-    ax.set_xlabel({"t": "t [s]", "load_factor": "load factor"}.get(abscissa, abscissa))
-    ax.set_ylabel("displacement [m]")
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
+    _finish(fig, ax, path, {"t": "t [s]", "load_factor": "load factor"}.get(abscissa, abscissa),
+            "displacement [m]", title)
 
 
 def plot_energies(history: dict[str, np.ndarray], path: Path, title: str = "") -> None:
@@ -56,14 +62,7 @@ def plot_energies(history: dict[str, np.ndarray], path: Path, title: str = "") -
         if name in history and np.any(history[name] != 0.0):
             ax.plot(history["t"], history[name], lw=2.0 if name == "E_total" else 1.2,
                     label=name)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("energy [J]")
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
+    _finish(fig, ax, path, "t [s]", "energy [J]", title)
 
 
 def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[float],
@@ -128,11 +127,4 @@ def plot_overlay(curves: list[tuple[str, np.ndarray, np.ndarray]], path: Path, x
     fig, ax = plt.subplots(figsize=(8, 4))
     for label, x, y in curves:
         ax.plot(x, y, lw=1.2, label=label)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
+    _finish(fig, ax, path, xlabel, ylabel, title)

@@ -83,11 +83,7 @@ def block_weights_cg(ce: ContactElements, pairs):
 
 def block_distances(x, ce: ContactElements, pairs):
     """Centre-line distances of all point pairs of each block, shape (C, n_s, n_s)."""
-    c1, R1, _, _ = _gather(ce, pairs[:, 0])
-    c2, R2, _, _ = _gather(ce, pairs[:, 1])
-    p1 = jnp.einsum("csk,ckd->csd", R1, x[c1])
-    p2 = jnp.einsum("csk,ckd->csd", R2, x[c2])
-    r = p1[:, :, None, :] - p2[:, None, :, :]
+    r = _block_geometry(x, ce, pairs)[2]
     return jnp.sqrt(jnp.sum(r * r, axis=-1))
 
 
@@ -100,14 +96,18 @@ def block_gaps(x, ce: ContactElements, pairs):
     return jnp.where((pairs[:, 0] < ce.n_elements)[:, None, None], q, jnp.inf)
 
 
+def _block_geometry(x, ce: ContactElements, pairs):
+    """Both elements' data of every block and the pair vectors r = p1_i - p2_j (C, s, s, 2)."""
+    first, second = _gather(ce, pairs[:, 0]), _gather(ce, pairs[:, 1])
+    p1 = jnp.einsum("csk,ckd->csd", first[1], x[first[0]])
+    p2 = jnp.einsum("csk,ckd->csd", second[1], x[second[0]])
+    return first, second, p1[:, :, None, :] - p2[:, None, :, :]
+
+
 def contact_energy(x, ce: ContactElements, cs: ContactSet, law: str):
     """Total contact energy of the frozen blocks at control points x."""
     phi, amplitude = _pair_law(law)
-    c1, R1, r1, b1 = _gather(ce, cs.pairs[:, 0])
-    c2, R2, r2, b2 = _gather(ce, cs.pairs[:, 1])
-    p1 = jnp.einsum("csk,ckd->csd", R1, x[c1])
-    p2 = jnp.einsum("csk,ckd->csd", R2, x[c2])
-    r = p1[:, :, None, :] - p2[:, None, :, :]
+    (_, _, r1, b1), (_, _, r2, b2), r = _block_geometry(x, ce, cs.pairs)
     amp = amplitude(r1, r2, b1 * b2, cs.params)
     return jnp.sum(cs.W * _over_pairs(phi)(jnp.sum(r * r, -1), r1 + r2, amp, cs.params))
 
@@ -126,11 +126,7 @@ def contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, n
 
 def _contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, n_dof: int):
     phi, amplitude = _pair_law(law)
-    c1, R1, r1, b1 = _gather(ce, cs.pairs[:, 0])
-    c2, R2, r2, b2 = _gather(ce, cs.pairs[:, 1])
-    p1 = jnp.einsum("csk,ckd->csd", R1, x[c1])
-    p2 = jnp.einsum("csk,ckd->csd", R2, x[c2])
-    r = p1[:, :, None, :] - p2[:, None, :, :]
+    (c1, R1, r1, b1), (c2, R2, r2, b2), r = _block_geometry(x, ce, cs.pairs)
     args = (r, r1 + r2, amplitude(r1, r2, b1 * b2, cs.params), cs.params)
     g, h = _over_pairs(_pair_derivatives(phi))(*args)
     G = cs.W[..., None] * g  # (C, s, s, 2)
