@@ -10,6 +10,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+import tomli_w
 
 from beamcontact.cli import bundled_case
 from beamcontact.io.results import read_history
@@ -29,38 +30,7 @@ def _write_case(path: Path, raw: dict) -> Path:
 
 
 def _to_toml(raw: dict) -> str:
-    """Minimal TOML writer for the test cases (tables, arrays of tables, inline values)."""
-
-    def value(v):
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, str):
-            return json.dumps(v)
-        if isinstance(v, dict):
-            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
-        if isinstance(v, list):
-            return "[" + ", ".join(value(x) for x in v) + "]"
-        return repr(v)
-
-    lines = []
-    scalars = {k: v for k, v in raw.items() if not isinstance(v, dict | list)
-               or (isinstance(v, list) and not (v and isinstance(v[0], dict)))}
-    lines += [f"{k} = {value(v)}" for k, v in scalars.items()]
-    for k, v in raw.items():
-        if isinstance(v, dict):
-            nested = {kk: vv for kk, vv in v.items() if isinstance(vv, list) and vv
-                      and isinstance(vv[0], dict)}
-            lines.append(f"[{k}]")
-            lines += [f"{kk} = {value(vv)}" for kk, vv in v.items() if kk not in nested]
-            for kk, items in nested.items():
-                for item in items:
-                    lines.append(f"[[{k}.{kk}]]")
-                    lines += [f"{a} = {value(b)}" for a, b in item.items()]
-        elif isinstance(v, list) and v and isinstance(v[0], dict):
-            for item in v:
-                lines.append(f"[[{k}]]")
-                lines += [f"{a} = {value(b)}" for a, b in item.items()]
-    return "\n".join(lines) + "\n"
+    return tomli_w.dumps(raw)
 
 
 def test_bundled_case_is_the_free_fall_benchmark():

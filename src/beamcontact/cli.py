@@ -108,11 +108,11 @@ def compare(
 ) -> None:
     """Overlay one output point of several runs against time or load factor (Figs. 7-10)."""
     from beamcontact.io.results import read_history
-    from beamcontact.plot import plot_overlay
+    from beamcontact.plot import plot_run_overlay
 
     if labels and len(labels) != len(runs):
         _fail(f"--label: give one label per run ({len(runs)}), got {len(labels)}", 2)
-    curves, abscissa = [], "t"
+    curves = []
     for k, run_dir in enumerate(runs):
         path = run_dir / "history.csv"
         if not path.is_file():
@@ -122,11 +122,126 @@ def compare(
         if column not in h:
             _fail(f"{path}: no column {column!r} (output points: "
                   f"{sorted({c.rsplit('_', 1)[0] for c in h if c.endswith('_uy')})})", 2)
-        abscissa = "t" if "t" in h else "load_factor"
-        curves.append((labels[k] if labels else run_dir.name, h[abscissa], h[column]))
-    plot_overlay(curves, out, "t [s]" if abscissa == "t" else "load factor",
-                 f"{point} {component} [m]")
+        curves.append((labels[k] if labels else run_dir.name, h))
+    if len({"t" in h for _, h in curves}) > 1:
+        _fail("cannot overlay static (load_factor) and dynamic (t) runs", 2)
+    plot_run_overlay(curves, column, out)
     typer.echo(f"wrote {out}")
+
+
+@app.command()
+def sweep(
+    case: Annotated[Path | None, typer.Argument(
+        help="Base case file (TOML). Without it, the bundled benchmark.")] = None,
+    sets: Annotated[list[str], typer.Option(
+        "--set", help="KEY=V1,V2,...: a dotted case key (list entries by name, e.g. "
+        "beams.upper.material.E, contact.penalty, analysis.alpha) and its values (TOML: "
+        "numbers, true/false, [x, y]; other text is a string). Several --set form the "
+        "Cartesian product.")] = None,
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", help="Sweep folder: one subfolder per run, sweep.csv, plots/. "
+        "Running the same sweep again skips completed runs.")] = None,
+    workers: Annotated[int | None, typer.Option(
+        "--workers", "-w", min=1, help="Worker processes of the local Dask cluster "
+        "(default: the number of cores, at most the number of runs).")] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        "--scheduler", help="Address of an existing Dask scheduler (tcp://HOST:PORT) "
+        "instead of a local cluster; its workers need beamcontact and must see --out.")] = None,
+    dry_run: Annotated[bool, typer.Option(
+        "--dry-run", help="List the runs and exit.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
+) -> None:
+    """Run a parameter study (Figs. 7-10) in parallel: one run per combination of --set values.
+
+    Writes DIR/<run>/ (the outputs of `run`), DIR/sweep.csv (parameters, status, first
+    impact, first amplitudes, smallest gap, wall time per run) and DIR/plots/ (overlays).
+    Exit code 0 when every run completed, 1 when some failed, 2 for invalid input.
+    """
+    import os
+    import tomllib
+
+    from beamcontact.io.case import CaseError
+    from beamcontact.sweep import expand, parse_setting, run_sweep
+
+    case = bundled_case() if case is None else case
+    parsed, text = _load(case)
+    if not sets:
+        _fail("--set KEY=V1,V2,... is required (e.g. --set contact.penalty=1e5,1e6)", 2)
+    try:
+        members = expand(tomllib.loads(text), [parse_setting(s) for s in sets])
+    except CaseError as exc:
+        _fail(str(exc), 2)
+    if dry_run:
+        for m in members:
+            typer.echo(f"{m.name}\t{m.label}")
+        typer.echo(f"{len(members)} run(s)")
+        return
+    if out is None:
+        _fail("--out DIR is required (the sweep folder; rerunning into it resumes)", 2)
+    points = [p.name for p in parsed.output.points]
+    n_workers = workers or max(1, min(os.cpu_count() or 1, len(members)))
+    try:
+        with _SweepProgress(len(members), quiet) as progress:
+            rows = run_sweep(members, out, points, workers=n_workers, scheduler=scheduler,
+                             events=progress.events())
+    except CaseError as exc:
+        _fail(str(exc), 2)
+    except KeyboardInterrupt:
+        _fail(f"interrupted; finished runs are kept in {out} (run the same command to go on)",
+              130)
+    failed = [r for r in rows if r["status"] != "completed"]
+    typer.echo(f"{len(rows) - len(failed)} of {len(rows)} run(s) completed; "
+               f"table {out / 'sweep.csv'}, plots in {out / 'plots'}")
+    for r in failed:
+        typer.echo(f"  {r['run']}: {r['status']}: {r['message']}", err=True)
+    if failed:
+        raise typer.Exit(1)
+
+
+class _SweepProgress:
+    """Rich progress across runs: one bar for the sweep, one per run in flight."""
+
+    def __init__(self, total: int, quiet: bool):
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        self.bar = Progress(TextColumn("{task.description}"), BarColumn(),
+                            TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
+                            disable=quiet)
+        self.total, self.runs, self.done, self.failed = total, {}, set(), 0
+        self.sweep = self.bar.add_task("sweep", total=total, info="")
+
+    def __enter__(self):
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.bar.__exit__(*exc)
+
+    def events(self):
+        from beamcontact.sweep import SweepEvents
+
+        def started(todo: int, done: int) -> None:
+            self.bar.update(self.sweep, completed=done,
+                            info=f"{done} done before, {todo} to run")
+
+        def progress(name: str, fraction: float, info: str) -> None:
+            if name in self.done:  # a late event of a finished run
+                return
+            if name not in self.runs:
+                self.runs[name] = self.bar.add_task(f"  {name}", total=1.0, info="")
+            self.bar.update(self.runs[name], completed=fraction, info=info)
+
+        def finished(member, summary: dict) -> None:
+            self.done.add(member.name)
+            if member.name in self.runs:
+                self.bar.remove_task(self.runs.pop(member.name))
+            self.failed += summary.get("status") != "completed"
+            self.bar.advance(self.sweep)
+            self.bar.update(self.sweep, info=f"{self.failed} failed" if self.failed else "")
+            self.bar.console.print(f"{member.name}: {summary.get('status')}"
+                                   f" ({summary.get('wall_time_s') or 0:.1f} s)")
+
+        return SweepEvents(started, progress, finished)
 
 
 @app.command()

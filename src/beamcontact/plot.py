@@ -38,7 +38,8 @@ def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str) -> None:
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=150)
     plt.close(fig)
@@ -128,3 +129,13 @@ def plot_overlay(curves: list[tuple[str, np.ndarray, np.ndarray]], path: Path, x
     for label, x, y in curves:
         ax.plot(x, y, lw=1.2, label=label)
     _finish(fig, ax, path, xlabel, ylabel, title)
+
+
+def plot_run_overlay(runs: list[tuple[str, dict[str, np.ndarray]]], column: str, path: Path,
+                     title: str = "") -> None:
+    """One history column of several labelled runs against time or load factor."""
+    abscissa = "t" if "t" in runs[0][1] else "load_factor"
+    ylabel = "smallest gap [m]" if column == "min_gap" else \
+        f"{column.rsplit('_', 1)[0]} {column.rsplit('_', 1)[-1]} [m]"
+    plot_overlay([(label, h[abscissa], h[column]) for label, h in runs], path,
+                 "t [s]" if abscissa == "t" else "load factor", ylabel, title)

@@ -75,6 +75,26 @@ def write_summary(path: Path, summary: dict) -> None:
     path.write_text(json.dumps(clean(summary), indent=2) + "\n", encoding="utf-8")
 
 
+def read_summary(path: Path) -> dict | None:
+    """summary.json, or None when it is missing or unreadable (a run cut off mid-write)."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def write_table(path: Path, columns: list[str], rows: list[dict]) -> None:
+    """A CSV table (sweep.csv), written whole to a temporary file and renamed, so that a
+    reader never sees half of it. None becomes an empty cell."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    with open(tmp, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(columns)
+        writer.writerows([["" if r.get(c) is None else _fmt(r[c]) for c in columns]
+                          for r in rows])
+    tmp.replace(path)
+
+
 class StateWriter:
     flush_seconds = 2.0
 

@@ -1,0 +1,396 @@
+"""Parameter sweeps: Cartesian products of case-file overrides, run with Dask distributed.
+
+``beamcontact sweep CASE --set KEY=V1,V2 [--set ...] --out DIR`` (the paper's studies,
+Figs. 7-10). A KEY is a dotted path into the case file; entries of a list of tables
+(``beams``, ``loads``, ``output.points``) are addressed by their ``name`` or by their index
+(``beams.upper.material.E``, ``loads.0.force``). A value is read as a TOML value (number,
+boolean, array ``[0.0, -9.81]``); anything else is a string (``contact.model=cg,ipip``).
+Commas inside brackets or quotes do not split values. Every member of the product is
+validated by the case schema before anything runs.
+
+Member ``NAME`` runs into ``DIR/NAME/`` with the outputs of ``beamcontact run`` plus its
+effective ``case.toml``. A member is complete when that case.toml equals the one the sweep
+would write and its summary.json says "completed": running the same sweep again skips it and
+reruns every other member from scratch. ``DIR/sweep.csv`` lists every member (parameters,
+status, key results); ``DIR/plots/`` overlays the output points of all members.
+
+Execution: a local Dask cluster of worker processes started and stopped here, or an existing
+scheduler (``--scheduler tcp://HOST:PORT``), whose workers must see DIR (a shared file
+system) and have beamcontact installed. A member that fails or whose worker dies is recorded
+and never stops the others.
+"""
+
+import copy
+import itertools
+import logging
+import re
+import shutil
+import time
+import tomllib
+import traceback
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomli_w
+
+from beamcontact.io.case import CaseError, parse_case
+from beamcontact.io.results import read_history, read_summary, write_summary, write_table
+
+PROGRESS_TOPIC = "beamcontact-sweep-progress"
+_COMPLETED = "completed"
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One ``--set KEY=V1,V2,...``: a dotted key and the values it takes."""
+
+    key: str
+    values: tuple[Any, ...]
+
+
+@dataclass(frozen=True)
+class Member:
+    """One run of a sweep: its folder name, parameters, legend label and case text."""
+
+    name: str
+    params: tuple[tuple[str, Any], ...]
+    label: str
+    case_text: str
+
+
+def _split_values(text: str) -> list[str]:
+    """Split at commas that are not inside brackets, braces or quotes."""
+    parts, depth, quote, start = [], 0, "", 0
+    for i, ch in enumerate(text):
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    parts.append(text[start:])
+    return [p.strip() for p in parts]
+
+
+def _parse_value(text: str) -> Any:
+    """A TOML value, or the text itself as a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def parse_setting(text: str) -> Setting:
+    """``KEY=V1,V2,...`` -> Setting; CaseError naming the problem."""
+    key, sep, values = text.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise CaseError(f"--set {text!r}: expected KEY=V1,V2,... (e.g. contact.penalty=1e5,1e6)")
+    if not re.fullmatch(r"[A-Za-z0-9_\-]+(\.[A-Za-z0-9_\-]+)*", key):
+        raise CaseError(f"--set {key}: a key is a dotted path such as beams.upper.material.E")
+    raw = _split_values(values)
+    if any(not v for v in raw):
+        raise CaseError(f"--set {key}: empty value in {values!r}")
+    parsed = [_parse_value(v) for v in raw]
+    for i, v in enumerate(parsed):
+        if any(type(v) is type(w) and v == w for w in parsed[:i]):
+            raise CaseError(f"--set {key}: value {raw[i]} is given twice")
+    return Setting(key, tuple(parsed))
+
+
+def apply_setting(raw: dict, key: str, value: Any) -> None:
+    """Set ``key`` (dotted, list entries by name or index) to ``value`` in ``raw``, in place.
+
+    Missing tables are created; whether a key exists at all is for the case schema to say.
+    """
+    parts = key.split(".")
+    node: Any = raw
+    for depth, part in enumerate(parts):
+        where = ".".join(parts[:depth]) or "the case"
+        last = depth == len(parts) - 1
+        if isinstance(node, list):
+            names = [e.get("name") if isinstance(e, dict) else None for e in node]
+            if part in names:
+                index = names.index(part)
+            elif part.isdigit() and int(part) < len(node):
+                index = int(part)
+            else:
+                known = ", ".join(str(n) for n in names if n is not None)
+                raise CaseError(f"--set {key}: {where} has no entry {part!r} (entries are "
+                                f"addressed by name{': ' + known if known else ''}, or by "
+                                f"index 0..{len(node) - 1})")
+            if last:
+                raise CaseError(f"--set {key}: names a whole entry of {where}; name one of "
+                                f"its keys")
+            node = node[index]
+        elif isinstance(node, dict):
+            if last:
+                node[part] = value
+            else:
+                node = node.setdefault(part, {})
+        else:
+            raise CaseError(f"--set {key}: {where} is a value, not a table")
+
+
+def _short_keys(keys: list[str]) -> list[str]:
+    """The shortest dotted suffixes that still tell the keys apart (for labels)."""
+    split = [k.split(".") for k in keys]
+    for n in range(1, max(len(s) for s in split) + 1):
+        short = [".".join(s[-n:]) for s in split]
+        if len(set(short)) == len(short):
+            return short
+    return keys
+
+
+def format_value(v: Any) -> str:
+    """Compact text of a parameter value (labels, folder names, sweep.csv)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        if v != 0.0 and not 1e-3 <= abs(v) < 1e4:
+            mantissa, exponent = f"{v:.12e}".split("e")
+            return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
+        return f"{v:.12g}"
+    if isinstance(v, list):
+        return "[" + ",".join(format_value(x) for x in v) + "]"
+    return str(v)
+
+
+def expand(raw: dict, settings: list[Setting]) -> list[Member]:
+    """The Cartesian product of ``settings`` applied to the case ``raw``, each validated.
+
+    Raises CaseError (naming the key and the member) before anything runs.
+    """
+    keys = [s.key for s in settings]
+    if not settings:
+        raise CaseError("--set: give at least one KEY=V1,V2,...")
+    for i, k in enumerate(keys):
+        if k in keys[:i]:
+            raise CaseError(f"--set {k}: the key is given twice")
+    short = _short_keys(keys)
+    members, names = [], set()
+    for combo in itertools.product(*(s.values for s in settings)):
+        member_raw = copy.deepcopy(raw)
+        for key, value in zip(keys, combo, strict=True):
+            apply_setting(member_raw, key, value)
+        label = ", ".join(f"{s}={format_value(v)}" for s, v in zip(short, combo, strict=True))
+        try:
+            parse_case(member_raw)
+        except CaseError as exc:
+            raise CaseError(f"sweep member {label}: {exc}") from None
+        name = re.sub(r"[^A-Za-z0-9_.,=+\-\[\]]", "-", label.replace(", ", "_"))[:120]
+        base, k = name, 1
+        while name in names:
+            k += 1
+            name = f"{base}_{k}"
+        names.add(name)
+        members.append(Member(name, tuple(zip(keys, combo, strict=True)), label,
+                              tomli_w.dumps(member_raw)))
+    return members
+
+
+def completed_summary(member: Member, run_dir: Path) -> dict | None:
+    """The summary of a finished member whose case equals this one, else None."""
+    case_file, summary_file = run_dir / "case.toml", run_dir / "summary.json"
+    if not (case_file.is_file() and summary_file.is_file()):
+        return None
+    if case_file.read_text(encoding="utf-8") != member.case_text:
+        return None
+    summary = read_summary(summary_file)
+    return summary if summary and summary.get("status") == _COMPLETED else None
+
+
+def run_member(member: Member, run_dir: str | Path,
+               report: Callable[[float, str], None] | None = None) -> dict:
+    """Run one member into ``run_dir`` (replacing what is there) and return its summary.
+
+    Never raises for a failing run: an exception becomes status "error" with its message
+    in the summary (and in ``run_dir/summary.json``), so a sweep goes on.
+    """
+    from beamcontact import enable_x64
+    from beamcontact.runner import run_case
+
+    enable_x64()
+    run_dir = Path(run_dir)
+    try:
+        if run_dir.exists():
+            shutil.rmtree(run_dir)
+        run_dir.mkdir(parents=True)
+        (run_dir / "case.toml").write_text(member.case_text, encoding="utf-8")
+        case = parse_case(tomllib.loads(member.case_text))
+        return run_case(case, member.case_text, run_dir, report)
+    except Exception as exc:  # noqa: BLE001 - a failing member is recorded, not fatal
+        summary = {"status": "error", "message": f"{type(exc).__name__}: {exc}",
+                   "traceback": traceback.format_exc()}
+        try:
+            write_summary(run_dir / "summary.json", summary)
+        except OSError:
+            pass
+        return summary
+
+
+def _run_on_worker(member: Member, run_dir: str) -> dict:
+    """run_member on a Dask worker, reporting progress as worker events (twice a second)."""
+    from distributed import get_worker
+
+    worker, last = get_worker(), [-1.0]
+
+    def report(fraction: float, info: str) -> None:
+        now = time.monotonic()
+        if now - last[0] >= 0.5:
+            last[0] = now
+            worker.log_event(PROGRESS_TOPIC, {"run": member.name, "fraction": fraction,
+                                              "info": info})
+
+    report(0.0, "starting")
+    return run_member(member, run_dir, report)
+
+
+@contextmanager
+def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
+    """A client of an existing scheduler, or of a local cluster started and stopped here."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise CaseError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+        with client:
+            yield client
+        return
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as client:
+        yield client
+
+
+def result_columns(point_names: list[str]) -> list[str]:
+    """Columns of sweep.csv after the parameters."""
+    per_point = [c for p in point_names for c in (f"{p}_first_amplitude",
+                                                  f"{p}_first_amplitude_t")]
+    return ["status", "message", "first_impact_time", *per_point, "min_gap",
+            "max_penetration", "steps", "newton_iterations", "cutbacks", "wall_time_s"]
+
+
+def member_row(member: Member, summary: dict | None, point_names: list[str]) -> dict:
+    """One row of sweep.csv."""
+    s = summary or {"status": "pending", "message": ""}
+    row = {"run": member.name, **{k: format_value(v) for k, v in member.params},
+           "status": s.get("status"), "message": s.get("message", "")}
+    amplitude = s.get("first_amplitude") or {}
+    for p in point_names:
+        row[f"{p}_first_amplitude"] = amplitude.get(p, {}).get("uy")
+        row[f"{p}_first_amplitude_t"] = amplitude.get(p, {}).get("t")
+    for key in ("first_impact_time", "min_gap", "max_penetration", "steps",
+                "newton_iterations", "cutbacks", "wall_time_s"):
+        row[key] = s.get(key)
+    return row
+
+
+@dataclass(frozen=True)
+class SweepEvents:
+    """Callbacks of a running sweep (the CLI draws progress with them)."""
+
+    started: Callable[[int, int], None] = lambda todo, done: None
+    progress: Callable[[str, float, str], None] = lambda name, fraction, info: None
+    finished: Callable[[Member, dict], None] = lambda member, summary: None
+
+
+def run_sweep(members: list[Member], out_dir: Path, point_names: list[str], *,
+              workers: int = 1, scheduler: str | None = None,
+              events: SweepEvents = SweepEvents()) -> list[dict]:
+    """Run the members not yet complete in ``out_dir``; write sweep.csv and the overlays.
+
+    Returns the rows of sweep.csv in member order. On KeyboardInterrupt the unfinished
+    members are marked "interrupted" in sweep.csv before the interrupt goes on.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summaries: dict[str, dict | None] = {m.name: completed_summary(m, out_dir / m.name)
+                                         for m in members}
+    todo = [m for m in members if summaries[m.name] is None]
+    columns = ["run", *[k for k, _ in members[0].params], *result_columns(point_names)]
+
+    def table() -> list[dict]:
+        rows = [member_row(m, summaries[m.name], point_names) for m in members]
+        write_table(out_dir / "sweep.csv", columns, rows)
+        return rows
+
+    table()
+    events.started(len(todo), len(members) - len(todo))
+    if todo:
+        try:
+            _execute(todo, out_dir, workers, scheduler, events, summaries, table)
+        except KeyboardInterrupt:
+            for m in todo:
+                if summaries[m.name] is None:
+                    summaries[m.name] = {"status": "interrupted",
+                                         "message": "the sweep was interrupted"}
+            table()
+            raise
+    rows = table()
+    plot_sweep(members, out_dir, point_names)
+    return rows
+
+
+def _execute(todo, out_dir, workers, scheduler, events, summaries, table) -> None:
+    from distributed import as_completed
+
+    with dask_client(workers, scheduler) as client:
+        client.subscribe_topic(
+            PROGRESS_TOPIC,
+            lambda event: events.progress(event[1]["run"], event[1]["fraction"],
+                                          event[1]["info"]))
+        futures = {client.submit(_run_on_worker, m, str((out_dir / m.name).resolve()),
+                                 pure=False, key=f"beamcontact-{m.name}-{time.time_ns()}"): m
+                   for m in todo}
+        try:
+            for future in as_completed(futures):
+                member = futures[future]
+                try:
+                    summary = future.result()
+                except Exception as exc:  # noqa: BLE001 - e.g. the worker process died
+                    summary = {"status": "crashed", "message": f"{type(exc).__name__}: {exc}"}
+                    run_dir = out_dir / member.name
+                    if run_dir.is_dir():
+                        write_summary(run_dir / "summary.json", summary)
+                summaries[member.name] = summary
+                table()
+                events.finished(member, summary)
+        finally:
+            client.cancel(list(futures))
+            client.unsubscribe_topic(PROGRESS_TOPIC)
+
+
+def plot_sweep(members: list[Member], out_dir: Path, point_names: list[str]) -> list[Path]:
+    """``plots/<point>_uy.png`` and ``_ux.png`` (and ``min_gap.png`` with contact): one curve
+    per member that has a history, labelled by its parameters (Figs. 7-10)."""
+    from beamcontact.plot import plot_run_overlay
+
+    runs = []
+    for m in members:
+        path = out_dir / m.name / "history.csv"
+        if path.is_file():
+            history = read_history(path)
+            if history and len(next(iter(history.values()))) > 1:
+                runs.append((m.label, history))
+    if not runs:
+        return []
+    (out_dir / "plots").mkdir(exist_ok=True)
+    title = ", ".join(k for k, _ in members[0].params)
+    written = []
+    for column in [f"{p}_{c}" for p in point_names for c in ("uy", "ux")] + ["min_gap"]:
+        if all(column in h and np.any(np.isfinite(h[column])) for _, h in runs):
+            path = out_dir / "plots" / f"{column}.png"
+            plot_run_overlay(runs, column, path, f"sweep over {title}")
+            written.append(path)
+    return written
