@@ -62,3 +62,13 @@ def test_benchmark_first_impact_and_amplitude(tmp_path, model):
     summary = run_case(parse_case(raw), "", tmp_path / "out")
     assert abs(summary["first_impact_time"] - 0.75) <= 1e-3
     assert abs(summary["first_amplitude"]["A"]["uy"] + 2.25) < 0.05
+
+
+def test_first_amplitude_ignores_wiggles_about_zero():
+    from beamcontact.runner import first_excursion_extreme
+
+    t = np.arange(9.0)
+    uy = np.array([-1e-7, 1e-8, -0.5, -2.0, -1.0, 0.01, 0.3, 1.0, -2.5])
+    assert first_excursion_extreme(t, uy) == {"uy": -2.0, "t": 3.0}
+    assert first_excursion_extreme(t, np.abs(uy)) == {"uy": 2.5, "t": 8.0}  # never returns
+    assert first_excursion_extreme(t, np.zeros(9)) == {"uy": 0.0, "t": 0.0}

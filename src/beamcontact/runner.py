@@ -377,12 +377,21 @@ def contact_summary(h: dict, points: list[str], contact) -> dict:
            "first_amplitude": {}}
     if hit.size:
         for name in points:
-            uy = h[f"{name}_uy"][hit[0]:]
-            t = h["t"][hit[0]:]
-            # the first excursion after the impact: until u_y changes sign (or the end)
-            sign = np.sign(uy[np.argmax(np.abs(uy) > 1e-9 * (1 + np.abs(uy).max()))])
-            back = np.where(np.sign(uy) == -sign)[0]
-            end = back[back > np.argmax(np.abs(uy) > 0)][0] if back.size else len(uy)
-            k = int(np.argmax(np.abs(uy[:end])))
-            out["first_amplitude"][name] = {"uy": float(uy[k]), "t": float(t[k])}
+            out["first_amplitude"][name] = first_excursion_extreme(h["t"][hit[0]:],
+                                                                   h[f"{name}_uy"][hit[0]:])
     return out
+
+
+def first_excursion_extreme(t: np.ndarray, uy: np.ndarray, level: float = 0.01) -> dict:
+    """Extreme of the first excursion of ``uy``: it starts where |uy| first exceeds
+    ``level`` times max |uy| and ends where uy passes that level with the opposite sign
+    (or at the end), so that round-off wiggles about zero do not count as excursions."""
+    tau = level * float(np.max(np.abs(uy)))
+    if tau == 0.0:
+        return {"uy": 0.0, "t": float(t[0])}
+    k0 = int(np.argmax(np.abs(uy) > tau))
+    sign = np.sign(uy[k0])
+    back = np.where(sign * uy[k0:] < -tau)[0]
+    end = k0 + (int(back[0]) if back.size else len(uy) - k0)
+    k = k0 + int(np.argmax(sign * uy[k0:end]))
+    return {"uy": float(uy[k]), "t": float(t[k])}
