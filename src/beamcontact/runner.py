@@ -27,6 +27,7 @@ from beamcontact.contact.problem import build_contact
 from beamcontact.dynamics.driver import (
     DynamicStep,
     host_diagnostics,
+    next_step_size,
     solve_dynamic,
     uniform_velocities,
 )
@@ -327,7 +328,7 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
         totals["iterations"] += s.iterations
         cutbacks = before["cutbacks"] + s.cutbacks
         save(s.step, s.t, s.state, s.dt, s.iterations, cutbacks, s.diagnostics,
-             min(2.0 * s.dt, an.dt))
+             next_step_size(s.dt, an.dt, s.iterations))
         if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
             out.vtk.write(s.t, out.x(s.state.u))
             next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval

@@ -107,24 +107,49 @@ def _block_geometry(x, ce: ContactElements, pairs):
 def contact_energy(x, ce: ContactElements, cs: ContactSet, law: str):
     """Total contact energy of the frozen blocks at control points x."""
     phi, amplitude = _pair_law(law)
-    (_, _, r1, b1), (_, _, r2, b2), r = _block_geometry(x, ce, cs.pairs)
-    amp = amplitude(r1, r2, b1 * b2, cs.params)
-    return jnp.sum(cs.W * _over_pairs(phi)(jnp.sum(r * r, -1), r1 + r2, amp, cs.params))
+
+    def add(total, part: ContactSet):
+        (_, _, r1, b1), (_, _, r2, b2), r = _block_geometry(x, ce, part.pairs)
+        amp = amplitude(r1, r2, b1 * b2, part.params)
+        return total + jnp.sum(part.W * _over_pairs(phi)(jnp.sum(r * r, -1), r1 + r2, amp,
+                                                          part.params))
+
+    return _over_chunks(ce, cs, add, jnp.zeros((), x.dtype))
+
+
+CHUNK = 8
 
 
 def contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, n_dof: int):
-    """Global contact force (gradient) and tangent (Hessian) of the frozen blocks.
+    """Global contact force (gradient) and tangent (Hessian) of the frozen blocks."""
+    zero = (jnp.zeros(n_dof, x.dtype), jnp.zeros((n_dof, n_dof), x.dtype))
+    return _over_chunks(ce, cs, lambda carry, part: _add_blocks(carry, x, ce, part, law), zero)
 
-    Skipped (zero) when no block is real, so free flight costs nothing.
+
+def _over_chunks(ce: ContactElements, cs: ContactSet, add, init):
+    """Fold ``add(carry, chunk)`` over the candidate list in chunks of CHUNK blocks,
+    skipping (``lax.cond``) every chunk without a real block.
+
+    The broad phase puts the real blocks first, so the cost follows the number of
+    candidates, not the capacity: a generous capacity costs nothing and saves
+    recompilations, and free flight costs nothing at all.
     """
-    any_block = jnp.any(cs.pairs[:, 0] < ce.n_elements)
-    return jax.lax.cond(any_block,
-                        lambda x, ce, cs: _contact_residual_tangent(x, ce, cs, law, n_dof),
-                        lambda *_: (jnp.zeros(n_dof), jnp.zeros((n_dof, n_dof))),
-                        x, ce, cs)
+    C = cs.pairs.shape[0]
+    size = CHUNK if C % CHUNK == 0 else C
+    chunks = jax.tree_util.tree_map(lambda a: a.reshape(C // size, size, *a.shape[1:]),
+                                    (cs.pairs, cs.W))
+
+    def body(carry, chunk):
+        part = ContactSet(chunk[0], chunk[1], cs.params)
+        real = jnp.any(part.pairs[:, 0] < ce.n_elements)
+        return jax.lax.cond(real, lambda c: add(c, part), lambda c: c, carry), None
+
+    return jax.lax.scan(body, init, chunks)[0]
 
 
-def _contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, n_dof: int):
+def _add_blocks(carry, x, ce: ContactElements, cs: ContactSet, law: str):
+    """Add the residual and tangent of the blocks of ``cs`` to carry = (res, K)."""
+    res, K = carry
     phi, amplitude = _pair_law(law)
     (c1, R1, r1, b1), (c2, R2, r2, b2), r = _block_geometry(x, ce, cs.pairs)
     args = (r, r1 + r2, amplitude(r1, r2, b1 * b2, cs.params), cs.params)
@@ -145,6 +170,4 @@ def _contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, 
     k = k.at[:, m:, :m].set(jnp.swapaxes(K12.reshape(C, m, m), 1, 2))
     f = jnp.concatenate([f1.reshape(C, m), f2.reshape(C, m)], axis=1)
     dofs = jnp.concatenate([element_dofs(c1), element_dofs(c2)], axis=1)
-    res = jnp.zeros(n_dof).at[dofs].add(f)
-    K = jnp.zeros((n_dof, n_dof)).at[dofs[:, :, None], dofs[:, None, :]].add(k)
-    return res, K
+    return res.at[dofs].add(f), K.at[dofs[:, :, None], dofs[:, None, :]].add(k)

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beamcontact.contact.blocks import ContactSet, block_gaps, block_weights_cg
+from beamcontact.contact.blocks import CHUNK, ContactSet, block_gaps, block_weights_cg
 from beamcontact.contact.broadphase import box_gap_lower_bound, candidate_pairs
 from beamcontact.contact.points import ContactElements, contact_elements
 from beamcontact.contact.select import closest_pair_weights
@@ -55,13 +55,25 @@ class ContactProblem:
                                  self.local_element, self.n_elements, q_active=2.0 * motion)
         return ContactSet(pairs, jnp.asarray(W), self.params), int(count)
 
+    @property
+    def all_pairs(self) -> int:
+        """The largest useful capacity: the number of all element pairs of different beams,
+        rounded up to whole chunks of the block kernel."""
+        n = int(self.elements.pairs.shape[0]) - 1
+        return -(-n // CHUNK) * CHUNK
+
+    def capacity_for(self, count: int) -> int:
+        """Candidate-list length for ``count`` candidates (see :func:`grown_capacity`)."""
+        return grown_capacity(count, self.all_pairs)
+
     def grown_set(self, x, motion: float, capacity: int) -> tuple[ContactSet, int]:
         """:meth:`frozen_set` with the capacity grown until the candidates fit."""
+        capacity = min(capacity, self.all_pairs)
         while True:
             cs, count = self.frozen_set(x, motion, capacity)
             if count <= capacity:
                 return cs, capacity
-            capacity = grown_capacity(count)
+            capacity = self.capacity_for(count)
 
     def check_step(self, x, cs: ContactSet, capacity: int) -> tuple[bool, float]:
         """After a step: (did the broad phase at x find a block the frozen set lacks,
@@ -76,9 +88,11 @@ class ContactProblem:
         return self.check_step(x, cs, cs.pairs.shape[0])[1]
 
 
-def grown_capacity(count: int) -> int:
-    """A power of two with room for 1.25 times ``count`` candidates."""
-    return int(2 ** np.ceil(np.log2(1.25 * max(count, 1))))
+def grown_capacity(count: int, limit: int | None = None) -> int:
+    """A power of two with room for 1.25 times ``count`` candidates, at most ``limit`` (the
+    number of all element pairs: a longer list could never fill)."""
+    power = int(2 ** np.ceil(np.log2(1.25 * max(count, 1))))
+    return power if limit is None else max(1, min(power, limit))
 
 
 @jax.jit(static_argnames=("capacity",))

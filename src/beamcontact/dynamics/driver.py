@@ -20,7 +20,7 @@ from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
 from beamcontact.contact.blocks import ContactSet, block_gaps, block_weights_cg
 from beamcontact.contact.broadphase import box_gap_lower_bound, candidate_pairs
-from beamcontact.contact.problem import ContactProblem, grown_capacity
+from beamcontact.contact.problem import ContactProblem
 from beamcontact.dynamics.hht import DynState, hht_step
 from beamcontact.solvers.newton import NewtonOptions
 
@@ -176,7 +176,8 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
     ce = None if contact is None else contact.elements
     params = None if contact is None else contact.params
     reach = 0.0 if contact is None else contact.reach
-    capacity_min = capacity
+    if contact is not None:
+        capacity = min(capacity, contact.all_pairs)
     cs0 = None if contact is None else contact.grown_set(_x(state.u, model), 0.0, capacity)[0]
     e_prev = _energy_totals({k: float(v) for k, v in
                              diagnostics(state, model, ce, cs0, law).items()})
@@ -189,7 +190,7 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
                 _predicted_x(state, model, jnp.asarray(h)),
                 motion_factor * float(contact_motion(state, jnp.asarray(h))), capacity)
             if count > capacity:
-                capacity = grown_capacity(count)
+                capacity = contact.capacity_for(count)
                 continue
         t0 = time.perf_counter()
         # the acceleration is 1/(beta h^2) times a displacement difference: the increment
@@ -208,9 +209,11 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
         reason = "Newton did not converge"
         gap = float(report.get("min_gap", np.nan))
         if contact is not None:
-            count = max(int(report.get("count", 0)), int(report["count_after"]))
+            # the candidates after a diverged Newton solve say nothing about the solution
+            count = max(int(report.get("count", 0)),
+                        int(report["count_after"]) if converged else 0)
             if count > capacity:  # overflow: reallocate and redo
-                capacity = grown_capacity(count)
+                capacity = contact.capacity_for(count)
                 continue
             if converged and bool(report["missing"]) and motion_factor < 16:
                 motion_factor *= 2.0  # the step moved further than foreseen: redo it
@@ -248,19 +251,25 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
         state = replace(new, t=jnp.asarray(t))
         steps += 1
         e_prev = e_new
-        if contact is not None:
-            # follow the number of candidates both ways: jit keeps one compiled step per
-            # capacity (powers of two), so shrinking after an impact costs nothing
-            capacity = max(capacity_min, grown_capacity(count))
         if on_step is not None:
             diag["min_gap"] = gap
             diag["E_total"] = e_new[0]
             on_step(DynamicStep(step0 + steps, t, h, state, int(res.iterations), cutbacks,
                                 diag))
-        dt_cur = min(2.0 * dt_cur, dt)
+        dt_cur = next_step_size(h, dt, int(res.iterations))
     return DynamicResult("completed", f"reached t = {t:.6g} s in {steps} steps", steps,
                          iterations, cutbacks, t, state, dt_cur, time.perf_counter() - start,
                          compile_time)
+
+
+GROW_ITERATIONS = 3
+
+
+def next_step_size(h: float, dt: float, iterations: int) -> float:
+    """The step after an accepted step h: doubled (up to the nominal dt) when Newton needed
+    at most GROW_ITERATIONS iterations, else kept, so that after a cut-back the step does
+    not grow back into a strongly nonlinear phase (an impact) where Newton would diverge."""
+    return min(2.0 * h, dt) if iterations <= GROW_ITERATIONS else h
 
 
 def _energy_totals(d: dict) -> tuple[float, float, float]:

@@ -228,7 +228,7 @@ class Contact(_Strict):
     the smallest radius). ``max_penetration``: a step whose smallest gap falls below
     -max_penetration is redone with half the step [m] (default: the smallest radius).
     ``capacity``: initial length of the list of candidate element pairs (it grows by
-    itself when the broad phase finds more).
+    itself when the broad phase finds more; unused entries cost nothing but memory).
     """
 
     model: Literal["none", "ipip", "cg"] = "none"
@@ -240,7 +240,7 @@ class Contact(_Strict):
     cutoff: Positive = 0.3
     q_reg: Positive | None = None
     max_penetration: Positive | None = None
-    capacity: Annotated[int, Field(ge=1)] = 32
+    capacity: Annotated[int, Field(ge=1)] = 128
 
 
 class Solver(_Strict):

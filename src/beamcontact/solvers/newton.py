@@ -2,8 +2,9 @@
 
 Convergence (both measured on free dofs):
     ||r_k|| <= rtol * ||r_0|| + atol     or     ||du_k||_inf <= utol * length,
-where r_0 is the residual at the predictor. A NaN or the iteration limit ends the loop
-with ``converged = False``; the caller (load stepping, time stepping) decides what to do.
+where r_0 is the residual at the predictor. A NaN, the iteration limit, or (when asked
+for with ``diverge_after``) divergence ends the loop with ``converged = False``; the
+caller (load stepping, time stepping) decides what to do.
 """
 
 from dataclasses import dataclass
@@ -36,7 +37,8 @@ class NewtonResult:
     aux: object = None
 
 
-def newton(residual_tangent, u0, max_iterations: int, tolerances) -> NewtonResult:
+def newton(residual_tangent, u0, max_iterations: int, tolerances,
+           diverge_after: int = 0) -> NewtonResult:
     """Solve residual(u) = 0 from u0.
 
     Args:
@@ -45,6 +47,9 @@ def newton(residual_tangent, u0, max_iterations: int, tolerances) -> NewtonResul
         u0: predictor.
         max_iterations: the static iteration limit.
         tolerances: array (rtol, atol, utol * length), traced so no recompilation.
+        diverge_after: if > 0, the solve fails as soon as the residual is still above
+            ||r_0|| after this many iterations, so a hopeless attempt is given up early
+            (time steps: at impacts most failed attempts diverge, and the step is cut).
     """
     rtol, atol, utol_abs = tolerances[0], tolerances[1], tolerances[2]
     r0, K0, aux0 = residual_tangent(u0)
@@ -61,7 +66,8 @@ def newton(residual_tangent, u0, max_iterations: int, tolerances) -> NewtonResul
         r, K, aux = residual_tangent(u)
         rn = jnp.linalg.norm(r)
         done = (rn <= rtol * norm0 + atol) | (jnp.max(jnp.abs(du)) <= utol_abs)
-        failed = ~jnp.isfinite(rn) | ~jnp.all(jnp.isfinite(du))
+        diverged = (diverge_after > 0) & (k + 1 >= diverge_after) & (rn > norm0)
+        failed = ~jnp.isfinite(rn) | ~jnp.all(jnp.isfinite(du)) | diverged
         return u, r, K, aux, k + 1, done & ~failed, failed, rn
 
     done0 = norm0 <= atol

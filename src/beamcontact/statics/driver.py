@@ -22,7 +22,7 @@ from beamcontact.assembly.system import (
     residual_tangent_with_contact,
     update_load_state,
 )
-from beamcontact.contact.problem import ContactProblem, grown_capacity
+from beamcontact.contact.problem import ContactProblem
 from beamcontact.solvers.newton import NewtonOptions, newton
 
 
@@ -100,6 +100,8 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
     ce = None if contact is None else contact.elements
     cs = None
     margin = 0.0 if contact is None else 0.5 * contact.reach
+    if contact is not None:
+        capacity = min(capacity, contact.all_pairs)
 
     def contact_set(u):
         return contact.frozen_set(model.x_ref + u.reshape(-1, 2), margin, capacity)
@@ -114,7 +116,7 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         if contact is not None:
             cs, count = contact_set(u)
             if count > capacity:
-                capacity = grown_capacity(count)
+                capacity = contact.capacity_for(count)
                 continue
         t0 = time.perf_counter()
         res = _solve_step(u, model, jnp.asarray(lam + dl), state, tol,
