@@ -114,7 +114,7 @@ def contact_energy(x, ce: ContactElements, cs: ContactSet, law: str):
         return total + jnp.sum(part.W * _over_pairs(phi)(jnp.sum(r * r, -1), r1 + r2, amp,
                                                           part.params))
 
-    return _over_chunks(ce, cs, add, jnp.zeros((), x.dtype))
+    return _over_chunks(cs, add, jnp.zeros((), x.dtype))
 
 
 CHUNK = 8
@@ -123,12 +123,12 @@ CHUNK = 8
 def contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, n_dof: int):
     """Global contact force (gradient) and tangent (Hessian) of the frozen blocks."""
     zero = (jnp.zeros(n_dof, x.dtype), jnp.zeros((n_dof, n_dof), x.dtype))
-    return _over_chunks(ce, cs, lambda carry, part: _add_blocks(carry, x, ce, part, law), zero)
+    return _over_chunks(cs, lambda carry, part: _add_blocks(carry, x, ce, part, law), zero)
 
 
-def _over_chunks(ce: ContactElements, cs: ContactSet, add, init):
+def _over_chunks(cs: ContactSet, add, init):
     """Fold ``add(carry, chunk)`` over the candidate list in chunks of CHUNK blocks,
-    skipping (``lax.cond``) every chunk without a real block.
+    skipping (``lax.cond``) every chunk whose weights are all zero.
 
     The broad phase puts the real blocks first, so the cost follows the number of
     candidates, not the capacity: a generous capacity costs nothing and saves
@@ -141,8 +141,9 @@ def _over_chunks(ce: ContactElements, cs: ContactSet, add, init):
 
     def body(carry, chunk):
         part = ContactSet(chunk[0], chunk[1], cs.params)
-        real = jnp.any(part.pairs[:, 0] < ce.n_elements)
-        return jax.lax.cond(real, lambda c: add(c, part), lambda c: c, carry), None
+        # padding blocks, and IPIP blocks without a selected pair, have zero weights
+        active = jnp.any(part.W != 0.0)
+        return jax.lax.cond(active, lambda c: add(c, part), lambda c: c, carry), None
 
     return jax.lax.scan(body, init, chunks)[0]
 
