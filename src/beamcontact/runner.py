@@ -179,7 +179,22 @@ def _discretize(case: Case) -> Discretization:
 
 def run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | None = None,
              restart: bool = False) -> dict:
-    """Run ``case`` and write its results into ``out_dir``; returns the summary."""
+    """Run ``case`` and write its results into ``out_dir``; returns the summary.
+
+    BLAS/LAPACK (OpenBLAS, used by JAX's CPU linear solves) runs on one thread during the
+    run: the summation order of a threaded LU depends on the thread count, and in the
+    multi-collision benchmark that round-off grows to millimetres, so results would
+    depend on the machine and on how many runs share it (a sweep's workers are
+    single-threaded). For the small dense systems here one thread is also the fastest.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _run_case(case, case_text, out_dir, progress, restart)
+
+
+def _run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | None,
+              restart: bool) -> dict:
     require_x64()
     if restart and case.analysis.kind != "dynamic":
         raise CaseError("--restart continues dynamic runs only (analysis.kind = \"dynamic\")")
