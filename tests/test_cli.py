@@ -2,6 +2,7 @@
 
 import copy
 import json
+import os
 import subprocess
 import sys
 import tomllib
@@ -182,3 +183,29 @@ def test_solver_failure_keeps_results_and_says_why(tmp_path):
     assert summary["status"] == "failed" and "last converged load factor" in summary["message"]
     h = read_history(out / "history.csv")
     assert len(h["load_factor"]) == summary["steps"] + 1
+
+
+def test_compilation_cache_location_and_identical_results(tmp_path, monkeypatch):
+    from beamcontact._cache import cache_dir
+
+    monkeypatch.setenv("BEAMCONTACT_CACHE_DIR", "")
+    assert cache_dir() is None
+    monkeypatch.delenv("BEAMCONTACT_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache_dir() == tmp_path / "xdg" / "beamcontact" / "jax"
+
+    raw = tomllib.loads((REPO / "examples" / "pinned_beam_vibration" / "case.toml").read_text())
+    raw["analysis"]["t_end"] = 0.02
+    case = _write_case(tmp_path / "c.toml", raw)
+    env = {**os.environ, "BEAMCONTACT_CACHE_DIR": str(tmp_path / "cache")}
+    runs = []
+    for k, cache in enumerate((None, env, env)):  # off, filling, reading
+        out = tmp_path / f"o{k}"
+        proc = subprocess.run([sys.executable, "-m", "beamcontact.cli", "run", str(case),
+                               "--out", str(out), "--quiet"], capture_output=True, text=True,
+                              timeout=600, env=cache or {**os.environ,
+                                                          "BEAMCONTACT_CACHE_DIR": ""})
+        assert proc.returncode == 0, proc.stderr
+        runs.append((out / "history.csv").read_text())
+    assert any((tmp_path / "cache").iterdir())  # the compiled step was stored
+    assert runs[0] == runs[1] == runs[2]

@@ -63,7 +63,10 @@ def run(
     from beamcontact.io.case import CaseError
     from beamcontact.runner import run_case
 
+    from beamcontact._cache import enable_compilation_cache
+
     beamcontact.enable_x64()
+    enable_compilation_cache()
     case = bundled_case() if case is None else case
     parsed, text = _load(case)
     if restart and out is None:

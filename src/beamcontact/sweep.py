@@ -217,9 +217,11 @@ def run_member(member: Member, run_dir: str | Path,
     in the summary (and in ``run_dir/summary.json``), so a sweep goes on.
     """
     from beamcontact import enable_x64
+    from beamcontact._cache import enable_compilation_cache
     from beamcontact.runner import run_case
 
     enable_x64()
+    enable_compilation_cache()
     run_dir = Path(run_dir)
     try:
         if run_dir.exists():
