@@ -139,8 +139,8 @@ def sweep(
     sets: Annotated[list[str], typer.Option(
         "--set", help="KEY=V1,V2,...: a dotted case key (list entries by name, e.g. "
         "beams.upper.material.E, contact.penalty, analysis.alpha) and its values (TOML: "
-        "numbers, true/false, [x, y]; other text is a string). Several --set form the "
-        "Cartesian product.")] = None,
+        "numbers, true/false, arrays such as \\[0, -9.81]; other text is a string). "
+        "Several --set form the Cartesian product.")] = None,
     out: Annotated[Path | None, typer.Option(
         "--out", "-o", help="Sweep folder: one subfolder per run, sweep.csv, plots/. "
         "Running the same sweep again skips completed runs.")] = None,
