@@ -2,13 +2,14 @@
 
 For a block (element e1 of one beam, element e2 of another) with contact points
 p1_i = R1_i x_e1 and p2_j = R2_j x_e2, the energy is sum_ij W_ij phi(|p1_i - p2_j|).
-``jax.grad`` and ``jax.hessian`` of phi act on the 2-vector r_ij = p1_i - p2_j only; the
-element-pair residual and the 2(n_loc) x 2(n_loc) tangent follow by small batched
-products with the basis rows (DESIGN.md Sec. 7), before one scatter per block.
+AD acts on the scalar law f(s) = phi(sqrt(s)) of s = r . r, r_ij = p1_i - p2_j, only
+(f' and f''); the gradient 2 f' r and Hessian 2 f' I + 4 f'' r r^T in r, then the
+element-pair residual and the 2(n_loc) x 2(n_loc) tangent, follow by small batched
+products with the basis rows (DESIGN.md Sec. 7), before one scatter per chunk of blocks.
 
-W_ij is w1_i w2_j (reference arc lengths) for the coarse-grained model, and the host's
-selection of closest pairs (1, or 1/2 for the two middle pairs of an even plateau) for
-IPIP.
+W_ij is w1_i w2_j (reference arc lengths) for the coarse-grained model, computed chunk by
+chunk from the element indices (``ContactSet.W`` is None), and the host's selection of
+closest pairs (1, or 1/2 for the two middle pairs of an even plateau) for IPIP.
 """
 
 from dataclasses import dataclass
@@ -25,10 +26,12 @@ from beamcontact.contact.points import ContactElements
 @dataclass(frozen=True)
 class ContactSet:
     """Candidate blocks frozen for one step: pairs (C, 2) global element indices (padding
-    = E) and pair weights W (C, n_s, n_s); ``params`` the law parameters."""
+    = E); pair weights W (C, n_s, n_s), or None for the reference arc-length weights of
+    the coarse-grained model (:func:`block_weights_cg`, formed chunk by chunk inside the
+    kernels, never as a whole list); ``params`` the law parameters."""
 
     pairs: jax.Array
-    W: jax.Array
+    W: jax.Array | None
     params: jax.Array
 
 
@@ -48,15 +51,13 @@ def _pair_law(law: str):
 
 
 def _pair_derivatives(f):
-    """Gradient and Hessian in r of phi(r) = f(r . r): 2 f' r and 2 f' I + 4 f'' r r^T,
-    with f' and f'' from ``jax.grad`` of the scalar law."""
+    """(f', f'') = (df/ds, d2f/ds2) of the scalar law, both from AD: the gradient in r of
+    phi(r) = f(r . r) is 2 f' r and its Hessian 2 f' I + 4 f'' r r^T."""
     df = jax.grad(f)
-    d2f = jax.grad(df)
 
-    def derivatives(r, R12, amp, params):
-        s = r @ r
-        f1, f2 = df(s, R12, amp, params), d2f(s, R12, amp, params)
-        return 2.0 * f1 * r, 2.0 * f1 * jnp.eye(2) + 4.0 * f2 * jnp.outer(r, r)
+    def derivatives(s, R12, amp, params):
+        # f' and f'' in one forward pass over f' (they share every transcendental)
+        return jax.jvp(lambda s: df(s, R12, amp, params), (s,), (jnp.ones_like(s),))
 
     return derivatives
 
@@ -87,6 +88,21 @@ def block_distances(x, ce: ContactElements, pairs):
     return jnp.sqrt(jnp.sum(r * r, axis=-1))
 
 
+def near_blocks(x, ce: ContactElements, pairs, limit):
+    """The blocks of ``pairs`` with a point pair closer than ``limit`` (centre-line
+    distance at x), moved to the front in their original order; the rest become padding.
+
+    The boxes of the broad phase are loose (a quartic element's control polygon is much
+    larger than the element), so only a third of their candidates, and an eighth of
+    their point pairs, are within the coarse-grained cutoff; a block with no pair inside
+    it contributes exactly zero and need not be evaluated in the Newton loop.
+    """
+    d = jnp.min(block_distances(x, ce, pairs), axis=(1, 2))
+    keep = (pairs[:, 0] < ce.n_elements) & (d < limit)
+    order = jnp.argsort(~keep, stable=True)
+    return jnp.where(keep[order][:, None], pairs[order], ce.pairs[-1])
+
+
 def block_gaps(x, ce: ContactElements, pairs):
     """Surface gaps q = d - R1 - R2 of all point pairs of real blocks (+inf for padding)."""
     d = block_distances(x, ce, pairs)
@@ -114,7 +130,7 @@ def contact_energy(x, ce: ContactElements, cs: ContactSet, law: str):
         return total + jnp.sum(part.W * _over_pairs(phi)(jnp.sum(r * r, -1), r1 + r2, amp,
                                                           part.params))
 
-    return _over_chunks(cs, add, jnp.zeros((), x.dtype))
+    return _over_chunks(ce, cs, add, jnp.zeros((), x.dtype))
 
 
 CHUNK = 8
@@ -123,12 +139,14 @@ CHUNK = 8
 def contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, n_dof: int):
     """Global contact force (gradient) and tangent (Hessian) of the frozen blocks."""
     zero = (jnp.zeros(n_dof, x.dtype), jnp.zeros((n_dof, n_dof), x.dtype))
-    return _over_chunks(cs, lambda carry, part: _add_blocks(carry, x, ce, part, law), zero)
+    return _over_chunks(ce, cs, lambda carry, part: _add_blocks(carry, x, ce, part, law),
+                        zero)
 
 
-def _over_chunks(cs: ContactSet, add, init):
+def _over_chunks(ce: ContactElements, cs: ContactSet, add, init):
     """Fold ``add(carry, chunk)`` over the candidate list in chunks of CHUNK blocks,
-    skipping (``lax.cond``) every chunk whose weights are all zero.
+    skipping (``lax.cond``) every chunk whose weights are all zero; each chunk reaches
+    ``add`` with its weights W filled in.
 
     The broad phase puts the real blocks first, so the cost follows the number of
     candidates, not the capacity: a generous capacity costs nothing and saves
@@ -140,7 +158,8 @@ def _over_chunks(cs: ContactSet, add, init):
                                     (cs.pairs, cs.W))
 
     def body(carry, chunk):
-        part = ContactSet(chunk[0], chunk[1], cs.params)
+        pairs, W = chunk
+        part = ContactSet(pairs, block_weights_cg(ce, pairs) if W is None else W, cs.params)
         # padding blocks, and IPIP blocks without a selected pair, have zero weights
         active = jnp.any(part.W != 0.0)
         return jax.lax.cond(active, lambda c: add(c, part), lambda c: c, carry), None
@@ -149,26 +168,38 @@ def _over_chunks(cs: ContactSet, add, init):
 
 
 def _add_blocks(carry, x, ce: ContactElements, cs: ContactSet, law: str):
-    """Add the residual and tangent of the blocks of ``cs`` to carry = (res, K)."""
+    """Add the residual and tangent of the blocks of ``cs`` to carry = (res, K).
+
+    With A = 2 W f' and B = 4 W f'' per point pair, the pair Hessian is
+    A I + B r r^T: its three distinct components (xx, xy, yy) are scalar fields over the
+    pairs, so each element-pair tangent is three small products R1^T H_ab R2 (and the
+    diagonal blocks R^T diag(row sums) R), never a (C, s, s, 2, 2) array.
+    """
     res, K = carry
     phi, amplitude = _pair_law(law)
     (c1, R1, r1, b1), (c2, R2, r2, b2), r = _block_geometry(x, ce, cs.pairs)
-    args = (r, r1 + r2, amplitude(r1, r2, b1 * b2, cs.params), cs.params)
-    g, h = _over_pairs(_pair_derivatives(phi))(*args)
-    G = cs.W[..., None] * g  # (C, s, s, 2)
-    H = cs.W[..., None, None] * h
-    f1 = jnp.einsum("cik,cija->cka", R1, G)
-    f2 = -jnp.einsum("cjl,cija->cla", R2, G)
-    K11 = jnp.einsum("cik,cil,ciab->ckalb", R1, R1, H.sum(axis=2))
-    K22 = jnp.einsum("cjk,cjl,cjab->ckalb", R2, R2, H.sum(axis=1))
-    K12 = -jnp.einsum("cik,cijab,cjl->ckalb", R1, H, R2)
+    f1, f2 = _over_pairs(_pair_derivatives(phi))(jnp.sum(r * r, -1), r1 + r2,
+                                                 amplitude(r1, r2, b1 * b2, cs.params),
+                                                 cs.params)
+    A, B = 2.0 * cs.W * f1, 4.0 * cs.W * f2  # (C, s, s)
+    G = A[..., None] * r  # gradient of each pair's energy in r
+    rx, ry = r[..., 0], r[..., 1]
+    H = jnp.stack([A + B * rx * rx, B * rx * ry, A + B * ry * ry], axis=1)  # (C, 3, s, s)
+    g1 = jnp.einsum("cik,cija->cka", R1, G)
+    g2 = -jnp.einsum("cjl,cija->cla", R2, G)
+    H11 = jnp.einsum("cik,cmi,cil->cmkl", R1, H.sum(axis=3), R1)
+    H22 = jnp.einsum("cjk,cmj,cjl->cmkl", R2, H.sum(axis=2), R2)
+    H12 = -jnp.einsum("cik,cmij,cjl->cmkl", R1, H, R2)
     C, n_loc = c1.shape
     m = 2 * n_loc
-    k = jnp.zeros((C, 2 * m, 2 * m))
-    k = k.at[:, :m, :m].set(K11.reshape(C, m, m))
-    k = k.at[:, m:, m:].set(K22.reshape(C, m, m))
-    k = k.at[:, :m, m:].set(K12.reshape(C, m, m))
-    k = k.at[:, m:, :m].set(jnp.swapaxes(K12.reshape(C, m, m), 1, 2))
-    f = jnp.concatenate([f1.reshape(C, m), f2.reshape(C, m)], axis=1)
+
+    def dofs_major(Hm):  # (C, 3, k, l) -> (C, 2 k + a, 2 l + b), the x_e.ravel() order
+        xx, xy, yy = Hm[:, 0], Hm[:, 1], Hm[:, 2]
+        return jnp.stack([jnp.stack([xx, xy], -1), jnp.stack([xy, yy], -1)], 2).reshape(C, m, m)
+
+    K11, K22, K12 = dofs_major(H11), dofs_major(H22), dofs_major(H12)
+    k = jnp.concatenate([jnp.concatenate([K11, K12], 2),
+                         jnp.concatenate([jnp.swapaxes(K12, 1, 2), K22], 2)], 1)
+    f = jnp.concatenate([g1.reshape(C, m), g2.reshape(C, m)], axis=1)
     dofs = jnp.concatenate([element_dofs(c1), element_dofs(c2)], axis=1)
     return res.at[dofs].add(f), K.at[dofs[:, :, None], dofs[:, None, :]].add(k)

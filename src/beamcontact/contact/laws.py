@@ -31,7 +31,10 @@ def cg_potential(q, amplitude, m, q_reg):
     """amplitude * q^(7/2-m) for q >= q_reg, its quadratic Taylor continuation below."""
     n = m - 3.5
     q_safe = jnp.where(q > q_reg, q, q_reg)  # no negative powers of small q, even unused
-    exact = amplitude * q_safe ** (-n)
+    # exp(-n log q) rather than q ** -n: the derivatives of exp and log reuse the primal
+    # values, so phi, phi' and phi'' cost one exp and one log per pair (a power's
+    # derivative is another power)
+    exact = amplitude * jnp.exp(-n * jnp.log(q_safe))
     phi0 = amplitude * q_reg ** (-n)
     dq = q - q_reg
     taylor = phi0 * (1.0 - n * dq / q_reg + 0.5 * n * (n + 1.0) * (dq / q_reg) ** 2)

@@ -2,11 +2,13 @@
 
 Each step (or load step) the candidate blocks are found by the broad phase on the
 predicted configuration, with boxes grown by the interaction reach (coarse-grained:
-half the cutoff; IPIP: the largest radius) plus the motion expected in the step; for
-IPIP the closest pairs are selected too. The set is frozen during the Newton loop so the
-tangent stays consistent; after the step the driver checks that no interacting pair was
-missed (else the step is redone with a larger motion margin) and that the capacity was
-enough (else it grows and the step is redone).
+half the cutoff; IPIP: the largest radius) plus the motion expected in the step; the
+coarse-grained model then keeps only the blocks with a point pair closer than the cutoff
+plus twice the motion (:func:`near_blocks`); for IPIP the closest pairs are selected.
+The set is frozen during the Newton loop so the tangent stays consistent; after the step
+the driver checks that no interacting block was missed (:func:`missed_blocks`; else the
+step is redone with a larger motion margin) and that the capacity was enough (else it
+grows and the step is redone).
 """
 
 from dataclasses import dataclass
@@ -15,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beamcontact.contact.blocks import CHUNK, ContactSet, block_gaps, block_weights_cg
+from beamcontact.contact.blocks import CHUNK, ContactSet, block_distances, block_gaps, near_blocks
 from beamcontact.contact.broadphase import box_gap_lower_bound, candidate_pairs
 from beamcontact.contact.points import ContactElements, contact_elements
 from beamcontact.contact.select import closest_pair_weights
@@ -30,6 +32,8 @@ class ContactProblem:
         elements: contact points of every element.
         params: (penalty, k, m, q_reg, cutoff) as a float64 array.
         reach: boxes grow by this (plus motion) in the broad phase.
+        interaction: centre-line distance beyond which a point pair contributes nothing
+            (coarse-grained: the cutoff; IPIP: inf, every box candidate is kept).
         max_penetration: a step whose smallest gap is below -max_penetration is redone
             with a smaller time step.
         beam_of, local_element, n_elements: numbering used by the IPIP selection.
@@ -39,6 +43,7 @@ class ContactProblem:
     elements: ContactElements
     params: jnp.ndarray
     reach: float
+    interaction: float
     max_penetration: float
     beam_of: np.ndarray
     local_element: np.ndarray
@@ -48,8 +53,9 @@ class ContactProblem:
         """Candidate blocks (and IPIP pair weights) for a step; returns (set, count)."""
         margin = jnp.asarray(self.reach + motion)
         if self.law == "cg":
-            pairs, W, count = _cg_set(x_pred, self.elements, margin, capacity)
-            return ContactSet(pairs, W, self.params), int(count)
+            pairs, count = _cg_set(x_pred, self.elements, margin,
+                                   jnp.asarray(self.interaction + 2.0 * motion), capacity)
+            return ContactSet(pairs, None, self.params), int(count)
         pairs, q, count = _candidate_gaps(x_pred, self.elements, margin, capacity)
         W = closest_pair_weights(np.asarray(q), np.asarray(pairs), self.beam_of,
                                  self.local_element, self.n_elements, q_active=2.0 * motion)
@@ -76,16 +82,15 @@ class ContactProblem:
             capacity = self.capacity_for(count)
 
     def check_step(self, x, cs: ContactSet, capacity: int) -> tuple[bool, float]:
-        """After a step: (did the broad phase at x find a block the frozen set lacks,
-        smallest gap over the frozen blocks, or a box bound when there are none)."""
-        missing, gap, bound = _after_step(x, self.elements, cs.pairs,
-                                          jnp.asarray(self.reach), capacity)
-        gap = float(gap)
-        return bool(missing), gap if np.isfinite(gap) else float(bound)
+        """After a step: (did the broad phase at x find an interacting block the frozen set
+        lacks, smallest surface gap; see :func:`missed_blocks`)."""
+        missing, gap = _after_step(x, self.elements, cs.pairs, jnp.asarray(self.reach),
+                                   jnp.asarray(self.interaction), capacity)
+        return bool(missing), float(gap)
 
     def min_gap(self, x, cs: ContactSet) -> float:
-        """Smallest surface gap over the frozen blocks (a box bound when there are none)."""
-        return self.check_step(x, cs, cs.pairs.shape[0])[1]
+        """Smallest surface gap at x (see :func:`missed_blocks`)."""
+        return self.check_step(x, cs, self.all_pairs)[1]
 
 
 def grown_capacity(count: int, limit: int | None = None) -> int:
@@ -96,9 +101,9 @@ def grown_capacity(count: int, limit: int | None = None) -> int:
 
 
 @jax.jit(static_argnames=("capacity",))
-def _cg_set(x, ce, margin, capacity):
+def _cg_set(x, ce, margin, limit, capacity):
     pairs, count = candidate_pairs(x, ce, margin, capacity)
-    return pairs, block_weights_cg(ce, pairs), count
+    return near_blocks(x, ce, pairs, limit), count
 
 
 @jax.jit(static_argnames=("capacity",))
@@ -107,16 +112,30 @@ def _candidate_gaps(x, ce, margin, capacity):
     return pairs, block_gaps(x, ce, pairs), count
 
 
-@jax.jit(static_argnames=("capacity",))
-def _after_step(x, ce, frozen_pairs, reach, capacity):
-    """(some candidate at x is not frozen, smallest frozen gap, box bound of the gap)."""
+def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: int):
+    """Checks after a step at x: (an interacting block is not in ``frozen_pairs``, number
+    of box candidates, smallest surface gap).
+
+    Candidates: blocks whose boxes grown by ``reach`` overlap; interacting: a candidate
+    with a point pair closer than ``interaction`` (inf: every candidate). The gap is the
+    smallest over the point pairs of the candidates (all pairs within 2 reach), or, when
+    there are none, a lower bound from the boxes (then larger than 2 reach - R1 - R2).
+    """
     pairs, count = candidate_pairs(x, ce, reach, capacity)
     E = ce.n_elements
     key = lambda p: p[:, 0] * (E + 1) + p[:, 1]  # noqa: E731
-    found = jnp.isin(key(pairs), key(frozen_pairs)) | (pairs[:, 0] >= E)
-    missing = (count > capacity) | ~jnp.all(found)
-    gap = jnp.min(block_gaps(x, ce, frozen_pairs))
-    return missing, gap, box_gap_lower_bound(x, ce)
+    near = jnp.min(block_distances(x, ce, pairs), axis=(1, 2)) < interaction
+    found = jnp.isin(key(pairs), key(frozen_pairs)) | (pairs[:, 0] >= E) | ~near
+    gap = jnp.min(block_gaps(x, ce, pairs))
+    gap = jnp.where(jnp.isfinite(gap), gap, box_gap_lower_bound(x, ce))
+    return ~jnp.all(found), count, gap
+
+
+@jax.jit(static_argnames=("capacity",))
+def _after_step(x, ce, frozen_pairs, reach, interaction, capacity):
+    """(some interacting block at x is not frozen or the list overflowed, smallest gap)."""
+    missing, count, gap = missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity)
+    return missing | (count > capacity), gap
 
 
 def build_contact(case, disc) -> ContactProblem | None:
@@ -131,10 +150,12 @@ def build_contact(case, disc) -> ContactProblem | None:
     q_reg = c.q_reg if c.q_reg is not None else 1e-3 * min(radii)
     params = jnp.asarray(np.array([c.penalty, c.k, c.exponent, q_reg, c.cutoff], float))
     reach = 0.5 * c.cutoff if c.model == "cg" else max(radii)
+    interaction = c.cutoff if c.model == "cg" else float("inf")
     beam_of = np.asarray(ce.beam)
     local, n_el = np.zeros_like(beam_of), np.zeros(len(disc.beams), dtype=np.int64)
     for e, b in enumerate(beam_of):
         local[e] = n_el[b]
         n_el[b] += 1
     max_pen = c.max_penetration if c.max_penetration is not None else min(radii)
-    return ContactProblem(c.model, ce, params, reach, max_pen, beam_of, local, n_el)
+    return ContactProblem(c.model, ce, params, reach, interaction, max_pen, beam_of, local,
+                          n_el)

@@ -18,9 +18,9 @@ import numpy as np
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
-from beamcontact.contact.blocks import ContactSet, block_gaps, block_weights_cg
-from beamcontact.contact.broadphase import box_gap_lower_bound, candidate_pairs
-from beamcontact.contact.problem import ContactProblem
+from beamcontact.contact.blocks import ContactSet, near_blocks
+from beamcontact.contact.broadphase import candidate_pairs
+from beamcontact.contact.problem import ContactProblem, missed_blocks
 from beamcontact.dynamics.hht import DynState, hht_step
 from beamcontact.solvers.newton import NewtonOptions
 
@@ -78,42 +78,51 @@ def host_diagnostics(state: DynState, model: Model, contact: "ContactProblem | N
     return d
 
 
+# the scalars of one attempt, returned as one float64 vector (one device-to-host copy per
+# step instead of one per scalar)
+DIAGNOSTICS = ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y")
+REPORT = ("converged", "iterations", "residual_norm", "initial_residual_norm", "count",
+          "missing", "count_after", "min_gap", "E_contact_before", *DIAGNOSTICS)
+
+
 @partial(jax.jit, static_argnames=("max_iterations", "law", "capacity"))
 def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, motion_factor,
-               ce=None, params=None, reach=0.0, cs=None, *, max_iterations: int,
+               ce=None, params=None, reach=0.0, interaction=0.0, cs=None, *,
+               max_iterations: int,
                law: str = "none", capacity: int = 0):
     """One attempt at a step, fused into a single dispatch: predictor, broad phase and
     coarse-grained block weights (unless ``cs`` is given, as IPIP's host selection does),
     the HHT-alpha Newton solve, the post-step contact checks and the diagnostics.
 
-    Returns (new state, Newton result, frozen set, report) where report holds the
-    candidate count, whether a pair was missed, the smallest gap and the diagnostics.
+    Returns (new state, report): report is a float64 vector of the scalars
+    named in :data:`REPORT` (Newton status, candidate count, whether a pair was missed,
+    the smallest gap, the diagnostics); contact entries are 0 (min_gap NaN) without
+    contact.
     """
-    report = {}
+    report = dict.fromkeys(REPORT, jnp.zeros(()))
+    report["min_gap"] = jnp.asarray(jnp.nan)
     if law != "none":
         if cs is None:
             x_pred = _predicted_x(state, model, h)
-            margin = reach + motion_factor * _motion(state, h)
-            pairs, count = candidate_pairs(x_pred, ce, margin, capacity)
-            cs = ContactSet(pairs, block_weights_cg(ce, pairs), params)
+            motion = motion_factor * _motion(state, h)
+            pairs, count = candidate_pairs(x_pred, ce, reach + motion, capacity)
+            pairs = near_blocks(x_pred, ce, pairs, interaction + 2.0 * motion)
+            cs = ContactSet(pairs, None, params)
             report["count"] = count
     new, res = hht_step(state, model, h, alpha, rtol, utol, max_iterations, ce, cs, law)
+    report.update(converged=res.converged, iterations=res.iterations,
+                  residual_norm=res.residual_norm,
+                  initial_residual_norm=res.initial_residual_norm)
     if law != "none":
         x_new = _x(new.u, model)
-        pairs, count = candidate_pairs(x_new, ce, reach, capacity)
-        E = ce.n_elements
-        key = lambda p: p[:, 0] * (E + 1) + p[:, 1]  # noqa: E731
-        found = jnp.isin(key(pairs), key(cs.pairs)) | (pairs[:, 0] >= E)
-        report["missing"] = ~jnp.all(found)
-        report["count_after"] = count
-        gap = jnp.min(block_gaps(x_new, ce, cs.pairs))
-        report["min_gap"] = jnp.where(jnp.isfinite(gap), gap, box_gap_lower_bound(x_new, ce))
-    report["diagnostics"] = diagnostics(new, model, ce, cs, law)
+        missing, count, gap = missed_blocks(x_new, ce, cs.pairs, reach, interaction, capacity)
+        report.update(missing=missing, count_after=count, min_gap=gap)
+    report.update(diagnostics(new, model, ce, cs, law))
     # the energy test compares both states under the same frozen set: a change of the set
     # between steps (IPIP re-selects its closest pairs) is a jump of the model, not an
     # integration error
     report["E_contact_before"] = contact_energy_of(state.u, model, ce, cs, law)
-    return new, res, cs, report
+    return new, jnp.stack([jnp.asarray(report[k], jnp.float64) for k in REPORT])
 
 
 def _motion(state: DynState, h):
@@ -164,9 +173,11 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
             part of a contact potential at once. 0 or less switches the check off.
     """
     start = time.perf_counter()
-    rtol = jnp.asarray(options.rtol)
-    utol = jnp.asarray(options.utol * length)
-    alpha_arr = jnp.asarray(alpha, dtype=jnp.float64)
+    # host scalars as NumPy float64: strongly typed like the arrays they replace, and
+    # passed to the jitted step without eager device operations
+    rtol = np.float64(options.rtol)
+    utol = np.float64(options.utol * length)
+    alpha_arr = np.float64(alpha)
     t = float(state.t)
     dt_cur = dt if dt_start is None else dt_start
     steps = iterations = cutbacks = consecutive = 0
@@ -176,6 +187,7 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
     ce = None if contact is None else contact.elements
     params = None if contact is None else contact.params
     reach = 0.0 if contact is None else contact.reach
+    interaction = 0.0 if contact is None else contact.interaction
     if contact is not None:
         capacity = min(capacity, contact.all_pairs)
     cs0 = None if contact is None else contact.grown_set(_x(state.u, model), 0.0, capacity)[0]
@@ -195,36 +207,35 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
         t0 = time.perf_counter()
         # the acceleration is 1/(beta h^2) times a displacement difference: the increment
         # test tightens like h^2 for cut steps, down to a round-off floor of the positions
-        utol_h = jnp.maximum(utol * min(1.0, (h / dt) ** 2), 1e-13 * length)
-        new, res, cs, report = fused_step(
-            state, model, jnp.asarray(h), alpha_arr, rtol, utol_h, jnp.asarray(motion_factor),
-            ce, params, reach, cs, max_iterations=options.max_iterations, law=law,
+        utol_h = np.maximum(utol * min(1.0, (h / dt) ** 2), 1e-13 * length)
+        new, packed = fused_step(
+            state, model, np.float64(h), alpha_arr, rtol, utol_h, np.float64(motion_factor),
+            ce, params, reach, interaction, cs, max_iterations=options.max_iterations, law=law,
             capacity=capacity)
-        res_host, report = jax.device_get((res, report))
-        converged = bool(res_host.converged)
+        report = dict(zip(REPORT, np.asarray(packed).tolist(), strict=True))
+        converged = report["converged"] != 0.0
+        n_iter = int(report["iterations"])
         if first:
             compile_time = time.perf_counter() - t0
             first = False
-        iterations += int(res_host.iterations)
+        iterations += n_iter
         reason = "Newton did not converge"
-        gap = float(report.get("min_gap", np.nan))
+        gap = report["min_gap"]
         if contact is not None:
             # the candidates after a diverged Newton solve say nothing about the solution
-            count = max(int(report.get("count", 0)),
-                        int(report["count_after"]) if converged else 0)
+            count = max(int(report["count"]), int(report["count_after"]) if converged else 0)
             if count > capacity:  # overflow: reallocate and redo
                 capacity = contact.capacity_for(count)
                 continue
-            if converged and bool(report["missing"]) and motion_factor < 16:
+            if converged and report["missing"] != 0.0 and motion_factor < 16:
                 motion_factor *= 2.0  # the step moved further than foreseen: redo it
                 continue
             if converged and gap < -contact.max_penetration:
                 converged = False
                 reason = f"penetration {-gap:.3g} m exceeded max_penetration"
-        res = res_host
-        diag = {k: float(v) for k, v in report["diagnostics"].items()}
+        diag = {k: report[k] for k in DIAGNOSTICS}
         e_new = _energy_totals(diag)
-        e_before = e_prev[0] - e_prev[2] + float(report["E_contact_before"])
+        e_before = e_prev[0] - e_prev[2] + report["E_contact_before"]
         if converged and energy_tol > 0 and (
                 e_new[0] - e_before > energy_tol * max(e_new[1], e_prev[1], 1e-300)):
             converged = False
@@ -236,9 +247,9 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
             if consecutive > max_cutbacks:
                 return DynamicResult(
                     "failed",
-                    f"{reason} at t = {t + h:.6g} s ({int(res.iterations)} "
-                    f"iterations, residual {float(res.residual_norm):.3e} from "
-                    f"{float(res.initial_residual_norm):.3e}) after {consecutive - 1} "
+                    f"{reason} at t = {t + h:.6g} s ({n_iter} "
+                    f"iterations, residual {report['residual_norm']:.3e} from "
+                    f"{report['initial_residual_norm']:.3e}) after {consecutive - 1} "
                     f"successive halvings of the time step (now {h:.3g} s); the last "
                     f"accepted time is {t:.6g} s",
                     steps, iterations, cutbacks, t, state, dt_cur,
@@ -254,9 +265,9 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
         if on_step is not None:
             diag["min_gap"] = gap
             diag["E_total"] = e_new[0]
-            on_step(DynamicStep(step0 + steps, t, h, state, int(res.iterations), cutbacks,
+            on_step(DynamicStep(step0 + steps, t, h, state, n_iter, cutbacks,
                                 diag))
-        dt_cur = next_step_size(h, dt, int(res.iterations))
+        dt_cur = next_step_size(h, dt, n_iter)
     return DynamicResult("completed", f"reached t = {t:.6g} s in {steps} steps", steps,
                          iterations, cutbacks, t, state, dt_cur, time.perf_counter() - start,
                          compile_time)
