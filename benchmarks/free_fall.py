@@ -4,7 +4,10 @@ Prints: simulated time, steps, Newton iterations, cut-backs, compile time, wall 
 compilation, per step and per iteration, and the share of one Newton iteration spent in
 contact (assembly with and without the contact blocks, at the state just after impact).
 
-    python benchmarks/free_fall.py [--t-end 2.0]
+    python benchmarks/free_fall.py [--t-end 2.0] [--models cg ipip] [--repeat 1]
+
+Timings on a shared 2-core machine vary by +-10 %; --repeat runs each model again
+(the compilation cache is not used, so every run compiles from scratch).
 """
 
 import argparse
@@ -18,6 +21,7 @@ beamcontact.enable_x64()
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
 
 from beamcontact.assembly.build import build_model  # noqa: E402
 from beamcontact.assembly.model import initial_load_state  # noqa: E402
@@ -83,15 +87,21 @@ def run(model_name: str, t_end: float) -> None:
 
 
 def main() -> None:
+    # one BLAS thread, as `beamcontact run` uses (reproducible digits, no oversubscription)
+    threadpool_limits(1, "blas")
     ap = argparse.ArgumentParser()
     ap.add_argument("--t-end", type=float, default=2.0)
+    ap.add_argument("--models", nargs="+", default=["cg", "ipip"], choices=["cg", "ipip"])
+    ap.add_argument("--repeat", type=int, default=1)
     args = ap.parse_args()
     print(f"JAX {jax.__version__} on {jax.devices()[0].platform}")
     print("| model | t_end [s] | steps | Newton it. | cut-backs | compile [s] | run [s] | "
           "per step [ms] | per iteration [ms] | contact share | status |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for name in ("cg", "ipip"):
-        run(name, args.t_end)
+    for name in args.models:
+        for _ in range(args.repeat):
+            jax.clear_caches()
+            run(name, args.t_end)
 
 
 if __name__ == "__main__":

@@ -67,3 +67,40 @@ def test_mass_kinetic_energy_and_momentum_of_rigid_motions():
     centroid = R * np.sin(half) / half * np.array([np.cos(half), np.sin(half)])
     np.testing.assert_allclose(np.asarray(p), mass * np.array([-centroid[1], centroid[0]]),
                                rtol=1e-10)
+
+
+def test_time_step_inertia_residual_and_tangent():
+    """The Gauss-point assembly used in the time step equals the element force of eq. (29)
+    at the Newmark v, a (assembled independently), and its tangent equals central
+    differences of that residual."""
+    from beamcontact.assembly.inertia import inertia_residual_tangent, newmark_kinematics
+    from beamcontact.assembly.model import element_dofs
+    from beamcontact.dynamics.hht import hht_coefficients
+
+    arc = {"center": [0.0, 0.0], "radius": 1.0, "start_angle": 0.3, "end_angle": 2.4}
+    case = static_case([beam(arc=arc, degree=4, elements=4, radius=0.05, density=900.0)])
+    model, _ = build_model(case)
+    n = model.n_dof
+    rng = np.random.default_rng(7)
+    u_n, v_n, a_n = (jnp.asarray(s * rng.normal(size=n)) for s in (0.05, 1.0, 10.0))
+    u = u_n + jnp.asarray(0.01 * rng.normal(size=n))
+    coeffs = hht_coefficients(-0.2, 1e-2)
+    r, K = jax.jit(inertia_residual_tangent)(u, u_n, v_n, a_n, coeffs, model)
+
+    v, a = newmark_kinematics(u, u_n, v_n, a_n, coeffs)
+    x = model.x_ref + u.reshape(-1, 2)
+    blk = model.beams[0]
+    ref = np.zeros(n)
+    for e in range(blk.conn.shape[0]):
+        c = blk.conn[e]
+        f = element_inertia_force(x[c], v.reshape(-1, 2)[c], a.reshape(-1, 2)[c], blk.R[e],
+                                  blk.dR[e], blk.wq[e], blk.g_ref[e], blk.rho_area,
+                                  blk.rho_inertia)
+        np.add.at(ref, np.asarray(element_dofs(c)), np.asarray(f).ravel())
+    np.testing.assert_allclose(r, ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+
+    res = jax.jit(lambda w: inertia_residual_tangent(w, u_n, v_n, a_n, coeffs, model)[0])
+    h = 1e-7
+    fd = np.column_stack([(res(u.at[i].add(h)) - res(u.at[i].add(-h))) / (2 * h)
+                          for i in range(n)])
+    np.testing.assert_allclose(K, fd, rtol=0, atol=1e-6 * np.abs(K).max())

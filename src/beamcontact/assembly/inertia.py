@@ -3,9 +3,10 @@
 Within a time step the velocity and acceleration are affine functions of the unknown
 displacement (Newmark, paper eqs. 33-35):
     a = c_a (u - u_n - dt v_n) - c_1 a_n,     v = v_n + dt ((1 - gamma) a_n + gamma a),
-with c_a = 1/(beta dt^2), c_1 = (1 - 2 beta)/(2 beta). The local force
-F_e(x_e, v_e(u_e), a_e(u_e)) is differentiated with ``jax.jacfwd`` per element, which
-gives dF/dx + gamma/(beta dt) dF/dv + 1/(beta dt^2) dF/da in one go.
+with c_a = 1/(beta dt^2), c_1 = (1 - 2 beta)/(2 beta). The local force, a function of
+x, v(u) and a(u), is differentiated with ``jax.jacfwd`` (per Gauss point in the time
+step, per element for the mass matrix), which gives
+dF/dx + gamma/(beta dt) dF/dv + 1/(beta dt^2) dF/da in one go.
 """
 
 import jax
@@ -16,6 +17,7 @@ from beamcontact.beam.inertia import (
     element_inertia_force,
     element_kinetic_energy,
     element_momentum,
+    rotational_acceleration,
 )
 
 
@@ -28,28 +30,48 @@ def newmark_kinematics(u, u_n, v_n, a_n, coeffs):
 
 
 def inertia_residual_tangent(u, u_n, v_n, a_n, coeffs, model: Model):
-    """Global inertia force at u (with Newmark v, a) and its tangent d/du."""
+    """Global inertia force at u (with Newmark v, a) and its tangent d/du.
+
+    Eq. (29) pairs the axis acceleration with R delta u and the rotational term with
+    dR delta u, and Newmark is linear, so both are point functions of the axis
+    displacement d = R_q u_e (translation) or its derivative d1 = dR_q u_e (rotation) at
+    each Gauss point; ``jax.jacfwd`` gives their 2 x 2 Jacobians there, and the element
+    tangent is sum_q R_q^T J_q R_q + dR_q^T J1_q dR_q.
+    """
     n = model.n_dof
     r = jnp.zeros(n)
     K = jnp.zeros((n, n))
-    x_ref = model.x_ref
-    un2, vn2, an2 = u_n.reshape(-1, 2), v_n.reshape(-1, 2), a_n.reshape(-1, 2)
+    u2, un2, vn2, an2 = (w.reshape(-1, 2) for w in (u, u_n, v_n, a_n))
     for blk in model.beams:
         c = blk.conn
+        ds = blk.wq * jnp.sqrt(blk.g_ref)  # reference arc length weights (E, Q)
 
-        def local(xe_flat, xr, une, vne, ane, R, dR, wq, g_ref, blk=blk):
-            x_e = xe_flat.reshape(-1, 2)
-            v_e, a_e = newmark_kinematics(x_e - xr, une, vne, ane, coeffs)
-            return element_inertia_force(x_e, v_e, a_e, R, dR, wq, g_ref, blk.rho_area,
-                                         blk.rho_inertia).ravel()
+        def at_points(B, w, c=c):  # (E, Q, 2): B_q applied to the element's w
+            return jnp.einsum("eqk,ekd->eqd", B, w[c])
 
-        x_e = (x_ref + u.reshape(-1, 2))[c].reshape(c.shape[0], -1)
-        args = (x_e, x_ref[c], un2[c], vn2[c], an2[c], blk.R, blk.dR, blk.wq, blk.g_ref)
-        r_e = jax.vmap(local)(*args)
-        k_e = jax.vmap(jax.jacfwd(local))(*args)
+        def translation(d, d_n, v_n, a_n, ds_q, blk=blk):
+            return blk.rho_area * ds_q * newmark_kinematics(d, d_n, v_n, a_n, coeffs)[1]
+
+        def rotation(d1, g1_ref, d1_n, v1_n, a1_n, ds_q, blk=blk):
+            v1, a1 = newmark_kinematics(d1, d1_n, v1_n, a1_n, coeffs)
+            return blk.rho_inertia * ds_q * rotational_acceleration(g1_ref + d1, v1, a1)
+
+        def both(f):
+            return jax.vmap(jax.vmap(f)), jax.vmap(jax.vmap(jax.jacfwd(f)))
+
+        t_args = (*(at_points(blk.R, w) for w in (u2, un2, vn2, an2)), ds)
+        r_args = (at_points(blk.dR, u2), at_points(blk.dR, model.x_ref),
+                  *(at_points(blk.dR, w) for w in (un2, vn2, an2)), ds)
+        (t_f, t_j), (r_f, r_j) = both(translation), both(rotation)
+        r_e = (jnp.einsum("eqk,eqa->eka", blk.R, t_f(*t_args))
+               + jnp.einsum("eqk,eqa->eka", blk.dR, r_f(*r_args)))
+        k_e = (jnp.einsum("eqk,eqab,eql->ekalb", blk.R, t_j(*t_args), blk.R)
+               + jnp.einsum("eqk,eqab,eql->ekalb", blk.dR, r_j(*r_args), blk.dR))
+        n_el, n_loc = c.shape
         dofs = element_dofs(c)
-        r = r.at[dofs].add(r_e)
-        K = K.at[dofs[:, :, None], dofs[:, None, :]].add(k_e)
+        r = r.at[dofs].add(r_e.reshape(n_el, 2 * n_loc))
+        K = K.at[dofs[:, :, None], dofs[:, None, :]].add(k_e.reshape(n_el, 2 * n_loc,
+                                                                    2 * n_loc))
     return r, K
 
 

@@ -1,9 +1,9 @@
 """Global residual and tangent from local energies (DESIGN.md Sec. 2).
 
-Each term is a scalar energy of one element's (or one load point's) control points;
-``jax.grad`` and ``jax.hessian`` act locally, ``vmap`` runs over elements, and the
-results are scattered into the global vector and matrix. No global Hessian is formed
-by AD.
+Each term is a scalar energy of local unknowns (the axis derivatives at one Gauss point,
+one load point's control points); ``jax.grad`` and ``jax.hessian`` act locally,
+``vmap`` runs over points and elements, and the results are scattered into the global
+vector and matrix. No global Hessian is formed by AD.
 
 Static total potential (load factor lam scales all external actions):
     Pi(u) = sum_e Pi_int,e + lam (sum_e Pi_grav,e + sum_l Pi_load,l).
@@ -13,20 +13,42 @@ import jax
 import jax.numpy as jnp
 
 from beamcontact.assembly.model import BeamBlock, LoadState, Model, element_dofs
-from beamcontact.beam.energy import element_gravity_potential, element_strain_energy
+from beamcontact.beam.energy import (
+    element_gravity_potential,
+    element_strain_energy,
+    point_strain_energy,
+)
 from beamcontact.beam.loads import point_load_potential, tangent_rotation
 from beamcontact.contact.blocks import contact_energy, contact_residual_tangent
 
 
-def _beam_energy(x_e, blk_e, blk: BeamBlock, lam, gravity):
-    R, dR, ddR, wq, g_ref, K_ref = blk_e
-    strain = element_strain_energy(x_e, dR, ddR, wq, g_ref, K_ref, blk.eta, blk.w_eta, blk.E)
-    grav = element_gravity_potential(x_e, R, wq, g_ref, blk.rho_area * blk.gravity_on, gravity)
-    return strain + lam * grav
+def _beam_residual_tangent(x, blk: BeamBlock, lam, gravity):
+    """Residual and tangent of every element of one beam, (E, 2n) and (E, 2n, 2n).
 
+    Strain: AD at the Gauss point (:func:`point_strain_energy` of y = (g1, g1'), 4 numbers)
+    and the chain rule through y_q = D_q x_e, linear in the control points:
+    r_e = sum_q D_q^T dpsi/dy, k_e = sum_q D_q^T d2psi/dy2 D_q. Gravity is linear in x,
+    so its gradient (AD of the element potential) is all and its Hessian is zero.
+    """
+    n_el, n_qp = blk.wq.shape
+    xe = x[blk.conn]  # (E, n, 2)
+    D = jnp.stack([blk.dR, blk.ddR], axis=2)  # (E, Q, 2, n): the rows giving g1 and g1'
+    y = jnp.einsum("eqsk,ekd->eqsd", D, xe).reshape(n_el, n_qp, 4)
 
-def _element_arrays(blk: BeamBlock):
-    return (blk.R, blk.dR, blk.ddR, blk.wq, blk.g_ref, blk.K_ref)
+    def density(y_q, g_ref, K_ref, wq):
+        return wq * point_strain_energy(y_q, g_ref, K_ref, blk.eta, blk.w_eta, blk.E)
+
+    def at_points(f):
+        return jax.vmap(jax.vmap(f))(y, blk.g_ref, blk.K_ref, blk.wq)
+
+    dpsi = at_points(jax.grad(density)).reshape(n_el, n_qp, 2, 2)
+    d2psi = at_points(jax.hessian(density)).reshape(n_el, n_qp, 2, 2, 2, 2)
+    r_e = jnp.einsum("eqsk,eqsa->eka", D, dpsi)
+    k_e = jnp.einsum("eqsk,eqsatb,eqtl->ekalb", D, d2psi, D)
+    r_grav = jax.vmap(jax.grad(element_gravity_potential), (0, 0, 0, 0, None, None))(
+        xe, blk.R, blk.wq, blk.g_ref, blk.rho_area * blk.gravity_on, gravity)
+    m = 2 * xe.shape[1]
+    return (r_e + lam * r_grav).reshape(n_el, m), k_e.reshape(n_el, m, m)
 
 
 def _load_energy(x_l, R, dR, force, moment, theta, tangent, lam):
@@ -63,13 +85,7 @@ def potential_residual_tangent(u: jax.Array, model: Model, lam, load_state: Load
     r = jnp.zeros(n)
     K = jnp.zeros((n, n))
     for blk in model.beams:
-        def local(xe_flat, blk_e, blk=blk):
-            return _beam_energy(xe_flat.reshape(-1, 2), blk_e, blk, lam, model.gravity)
-
-        xe = x[blk.conn].reshape(blk.conn.shape[0], -1)
-        arrays = _element_arrays(blk)
-        r_e = jax.vmap(jax.grad(local))(xe, arrays)
-        k_e = jax.vmap(jax.hessian(local))(xe, arrays)
+        r_e, k_e = _beam_residual_tangent(x, blk, lam, model.gravity)
         r, K = _scatter(r, K, element_dofs(blk.conn), r_e, k_e)
     ld = model.loads
     if ld.conn.shape[0] > 0:

@@ -32,10 +32,14 @@ def axis_metric(x_e, dR, ddR):
         x_e: control points of the element, shape (p+1, 2).
         dR, ddR: basis derivatives at the Gauss points, shape (n_qp, p+1).
     """
-    g1 = dR @ x_e
-    g1d = ddR @ x_e
+    return metric_and_curvature(dR @ x_e, ddR @ x_e)
+
+
+def metric_and_curvature(g1, g1d):
+    """g = g1 . g1 and K = (g1 x g1') / g^(3/2) from the axis tangent g1 = dr/dxi and its
+    derivative g1' (last axis of length 2)."""
     g = jnp.sum(g1 * g1, axis=-1)
-    K = (g1[:, 0] * g1d[:, 1] - g1[:, 1] * g1d[:, 0]) / g**1.5
+    K = (g1[..., 0] * g1d[..., 1] - g1[..., 1] * g1d[..., 0]) / g**1.5
     return g, K
 
 
@@ -54,6 +58,18 @@ def fibre_strain_energy_density(g, K, g_ref, K_ref, eta, w_eta, E):
     strain = 0.5 * (gbar - gbar_ref) / gbar_ref  # physical Green-Lagrange strain
     density = 0.5 * E * strain**2 * g0_ref * jnp.sqrt(g_ref)[:, None]
     return density @ w_eta
+
+
+def point_strain_energy(y, g_ref, K_ref, eta, w_eta, E):
+    """Strain energy per unit xi at one Gauss point as a function of the four numbers
+    y = (g1, g1') of the axis there (eqs. 23-26, 30).
+
+    The element energy is sum_q wq_q of this with y_q = (dR_q x_e, ddR_q x_e), linear in
+    the control points: its gradient and Hessian follow from the 4-vector derivatives by
+    the basis rows (assembly/system.py), far cheaper than AD over a whole element.
+    """
+    g, K = metric_and_curvature(y[None, :2], y[None, 2:])
+    return fibre_strain_energy_density(g, K, g_ref[None], K_ref[None], eta, w_eta, E)[0]
 
 
 def element_strain_energy(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E):

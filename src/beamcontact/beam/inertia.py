@@ -23,8 +23,20 @@ import jax.numpy as jnp
 
 def _normal(g1):
     g = jnp.sum(g1 * g1, axis=-1)
-    n = jnp.stack([-g1[:, 1], g1[:, 0]], axis=-1) / jnp.sqrt(g)[:, None]
+    n = jnp.stack([-g1[..., 1], g1[..., 0]], axis=-1) / jnp.sqrt(g)[..., None]
     return g, n
+
+
+def rotational_acceleration(g1, v1, a1):
+    """theta_ddot / sqrt(g) times the unit normal n at a point of the axis, from the
+    tangent g1 = dr/dxi and its velocity v1 and acceleration a1 (last axis of length 2).
+
+    rho I ds times this, paired with delta u1, is the rotational part of eq. (29).
+    """
+    g, n = _normal(g1)
+    theta_ddot_over_sqrt_g = (jnp.sum(a1 * n, -1) / g
+                              - 2.0 * jnp.sum(v1 * g1, -1) * jnp.sum(v1 * n, -1) / g**2)
+    return theta_ddot_over_sqrt_g[..., None] * n
 
 
 def element_inertia_force(x_e, v_e, a_e, R, dR, wq, g_ref, rho_area, rho_inertia):
@@ -38,11 +50,8 @@ def element_inertia_force(x_e, v_e, a_e, R, dR, wq, g_ref, rho_area, rho_inertia
     """
     ds = wq * jnp.sqrt(g_ref)  # reference arc length weights
     trans = rho_area * jnp.einsum("q,qk,qd->kd", ds, R, R @ a_e)
-    g1, v1, a1 = dR @ x_e, dR @ v_e, dR @ a_e
-    g, n = _normal(g1)
-    theta_ddot_over_sqrt_g = (jnp.sum(a1 * n, -1) / g
-                              - 2.0 * jnp.sum(v1 * g1, -1) * jnp.sum(v1 * n, -1) / g**2)
-    rot = rho_inertia * jnp.einsum("q,qk,qd->kd", ds * theta_ddot_over_sqrt_g, dR, n)
+    rot = rho_inertia * jnp.einsum("q,qk,qd->kd", ds, dR,
+                                   rotational_acceleration(dR @ x_e, dR @ v_e, dR @ a_e))
     return trans + rot
 
 

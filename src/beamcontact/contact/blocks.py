@@ -133,7 +133,7 @@ def contact_energy(x, ce: ContactElements, cs: ContactSet, law: str):
     return _over_chunks(ce, cs, add, jnp.zeros((), x.dtype))
 
 
-CHUNK = 8
+CHUNK = 4
 
 
 def contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, n_dof: int):

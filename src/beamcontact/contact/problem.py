@@ -57,9 +57,17 @@ class ContactProblem:
                                    jnp.asarray(self.interaction + 2.0 * motion), capacity)
             return ContactSet(pairs, None, self.params), int(count)
         pairs, q, count = _candidate_gaps(x_pred, self.elements, margin, capacity)
-        W = closest_pair_weights(np.asarray(q), np.asarray(pairs), self.beam_of,
-                                 self.local_element, self.n_elements, q_active=2.0 * motion)
-        return ContactSet(pairs, jnp.asarray(W), self.params), int(count)
+        return self.ipip_set(pairs, q, motion), int(count)
+
+    def ipip_set(self, pairs, q, motion: float) -> ContactSet:
+        """The IPIP set from the candidate blocks and their gaps: the closest pairs chosen
+        on the host (:func:`closest_pair_weights`), blocks with a chosen pair first so
+        that the kernels skip the rest chunk by chunk."""
+        pairs, q = np.asarray(pairs), np.asarray(q)
+        W = closest_pair_weights(q, pairs, self.beam_of, self.local_element,
+                                 self.n_elements, q_active=2.0 * motion)
+        order = np.argsort(~W.any(axis=(1, 2)), kind="stable")
+        return ContactSet(pairs[order], W[order], self.params)
 
     @property
     def all_pairs(self) -> int:

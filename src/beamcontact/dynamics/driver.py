@@ -18,7 +18,7 @@ import numpy as np
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
-from beamcontact.contact.blocks import ContactSet, near_blocks
+from beamcontact.contact.blocks import ContactSet, block_gaps, near_blocks
 from beamcontact.contact.broadphase import candidate_pairs
 from beamcontact.contact.problem import ContactProblem, missed_blocks
 from beamcontact.dynamics.hht import DynState, hht_step
@@ -141,10 +141,15 @@ def _x(u, model: Model):
     return model.x_ref + u.reshape(-1, 2)
 
 
-@jax.jit
-def contact_motion(state: DynState, h):
-    """:func:`_motion` as a jitted function for the host (IPIP selection)."""
-    return _motion(state, h)
+@partial(jax.jit, static_argnames=("capacity",))
+def ipip_candidates(state: DynState, model: Model, h, motion_factor, ce, reach, *,
+                    capacity: int):
+    """Predictor, motion bound, candidate blocks and their point-pair gaps in one dispatch,
+    for IPIP's host selection: (pairs, gaps, count, motion)."""
+    x_pred = _predicted_x(state, model, h)
+    motion = motion_factor * _motion(state, h)
+    pairs, count = candidate_pairs(x_pred, ce, reach + motion, capacity)
+    return pairs, block_gaps(x_pred, ce, pairs), count, motion
 
 
 def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha: float,
@@ -198,9 +203,10 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
         h = _step_size(t, t_end, dt_cur)
         cs = None
         if law == "ipip":  # the closest pairs are chosen on the host
-            cs, count = contact.frozen_set(
-                _predicted_x(state, model, jnp.asarray(h)),
-                motion_factor * float(contact_motion(state, jnp.asarray(h))), capacity)
+            pairs, q, count, motion = jax.device_get(ipip_candidates(
+                state, model, np.float64(h), np.float64(motion_factor), ce, reach,
+                capacity=capacity))
+            cs = contact.ipip_set(pairs, q, float(motion))
             if count > capacity:
                 capacity = contact.capacity_for(count)
                 continue
