@@ -21,7 +21,7 @@ from beamcontact.contact.problem import build_contact
 from beamcontact.contact.select import closest_pair_weights
 from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities
 from beamcontact.dynamics.hht import initial_state
-from beamcontact.io.case import parse_case
+from beamcontact.io.case import CaseError, parse_case
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
 
@@ -336,3 +336,68 @@ def test_weights_of_cg_blocks_are_reference_arc_lengths():
     W = np.asarray(block_weights_cg(ce, pairs))
     np.testing.assert_allclose(W[0], np.outer(w[0], w[4]))
     assert np.all(W[1] == 0)
+
+
+# --- contact.pairs: which beams interact ---------------------------------------------------
+
+@pytest.mark.parametrize("law", ["cg", "ipip"])
+def test_listed_pairs_only_interact(law):
+    """contact.pairs = [["a", "b"]]: a third beam c lying across both adds nothing. The
+    broad phase's universe holds only element pairs of a and b, and the contact energy and
+    force equal those of the model without c (an independent two-beam computation)."""
+    a = beam("a", line=([0, 0], [2, 0]), degree=4, elements=4, radius=0.1)
+    b = beam("b", line=([0.5, 0.3], [1.7, 0.15]), degree=3, elements=3, radius=0.1)
+    c = beam("c", line=([1.0, -0.5], [1.1, 0.8]), degree=3, elements=2, radius=0.1)
+    contact = {"model": law, "segments_per_element": 5, "q_reg": 0.02}
+
+    def setup(beams, **extra):
+        case = parse_case({"analysis": {"kind": "static"}, "beams": beams,
+                           "contact": {**contact, **extra}})
+        model, disc = build_model(case)
+        problem = build_contact(case, disc)
+        x = np.asarray(model.x_ref).copy()
+        x[disc.beam("b").offset:disc.beam("b").offset + disc.beam("b").n_cp, 1] -= 0.19
+        return model, disc, problem, jnp.asarray(x)
+
+    model3, disc3, p3, x3 = setup([a, b, c], pairs=[["b", "a"]])
+    model2, disc2, p2, x2 = setup([a, b])
+    beam_of = np.asarray(p3.elements.beam)
+    universe = np.asarray(p3.elements.pairs)[:-1]
+    assert len(universe) == 4 * 3
+    assert {tuple(sorted(beam_of[e] for e in pr)) for pr in universe} == {(0, 1)}
+
+    def energy_and_force(model, problem, x):
+        cs, _ = problem.grown_set(x, 0.0, 64)
+        e = contact_energy(x, problem.elements, cs, law)
+        r, _ = contact_residual_tangent(x, problem.elements, cs, law, model.n_dof)
+        return float(e), np.asarray(r)
+
+    e3, r3 = energy_and_force(model3, p3, x3)
+    e2, r2 = energy_and_force(model2, p2, x2)
+    assert e2 > 0
+    np.testing.assert_allclose(e3, e2, rtol=1e-13)
+    n2 = model2.n_dof
+    np.testing.assert_allclose(r3[:n2], r2, rtol=0, atol=1e-13 * np.abs(r2).max())
+    assert np.all(r3[n2:] == 0.0)
+    # energies add up by pair of beams: all pairs = (a, b) + the two pairs with c
+    e_all = energy_and_force(*setup([a, b, c])[::2], setup([a, b, c])[3])[0]
+    e_c = energy_and_force(*setup([a, b, c], pairs=[["a", "c"], ["c", "b"]])[::2],
+                           setup([a, b, c])[3])[0]
+    assert e_c > 0
+    np.testing.assert_allclose(e_all, e3 + e_c, rtol=1e-12)
+
+
+@pytest.mark.parametrize("pairs, message", [
+    ([["a", "z"]], "contact.pairs[0]: unknown beam 'z'"),
+    ([["a", "a"]], "contact.pairs[0]: self-contact of 'a' is not implemented"),
+    ([["a", "b"], ["b", "a"]], "contact.pairs[1]: the pair ['b', 'a'] is listed twice"),
+    ([], "contact.pairs"),
+    ([["a"]], "contact.pairs[0]"),
+])
+def test_bad_contact_pairs_are_named(pairs, message):
+    raw = {"analysis": {"kind": "static"},
+           "beams": [beam("a", line=([0, 0], [1, 0])), beam("b", line=([0, 1], [1, 1]))],
+           "contact": {"model": "cg", "pairs": pairs}}
+    with pytest.raises(CaseError) as err:
+        parse_case(raw)
+    assert message in str(err.value)

@@ -38,8 +38,13 @@ class ContactElements:
         return self.conn.shape[0]
 
 
-def contact_elements(disc, segments: int, betas) -> ContactElements:
-    """Contact points of every element of every beam (host-side, once)."""
+def contact_elements(disc, segments: int, betas, beam_pairs=None) -> ContactElements:
+    """Contact points of every element of every beam (host-side, once).
+
+    Args:
+        beam_pairs: pairs of beam indices that interact (None: every two different beams);
+            only their element pairs enter ``pairs``, the broad phase's universe.
+    """
     n_loc = max(b.curve.degree + 1 for b in disc.beams)
     conn, valid, Rs, ws, radius, beta, beam_of = [], [], [], [], [], [], []
     x, gw = np.polynomial.legendre.leggauss(8)
@@ -69,7 +74,13 @@ def contact_elements(disc, segments: int, betas) -> ContactElements:
     beam_of = np.array(beam_of)
     n = len(beam_of)
     i, j = np.triu_indices(n, k=1)
-    cross = beam_of[i] != beam_of[j]
+    n_beams = len(disc.beams)
+    allowed = ~np.eye(n_beams, dtype=bool)
+    if beam_pairs is not None:
+        allowed[:] = False
+        for b1, b2 in beam_pairs:
+            allowed[b1, b2] = allowed[b2, b1] = b1 != b2
+    cross = allowed[beam_of[i], beam_of[j]]
     pairs = np.vstack([np.column_stack([i[cross], j[cross]]), [[n, n]]]).astype(np.int64)
     return ContactElements(conn=jnp.asarray(np.array(conn)), loc_valid=jnp.asarray(valid),
                            R=as_float(Rs), w=as_float(ws), radius=as_float(radius),

@@ -91,14 +91,23 @@ class ContactProblem:
 
     def check_step(self, x, cs: ContactSet, capacity: int) -> tuple[bool, float]:
         """After a step: (did the broad phase at x find an interacting block the frozen set
-        lacks, smallest surface gap; see :func:`missed_blocks`)."""
-        missing, gap = _after_step(x, self.elements, cs.pairs, jnp.asarray(self.reach),
-                                   jnp.asarray(self.interaction), capacity)
-        return bool(missing), float(gap)
+        lacks, or more candidates than ``capacity``; smallest surface gap, see
+        :func:`missed_blocks`)."""
+        missing, count, gap = _after_step(x, self.elements, cs.pairs,
+                                          jnp.asarray(self.reach),
+                                          jnp.asarray(self.interaction), capacity)
+        return bool(missing) or int(count) > capacity, float(gap)
 
     def min_gap(self, x, cs: ContactSet) -> float:
-        """Smallest surface gap at x (see :func:`missed_blocks`)."""
-        return self.check_step(x, cs, self.all_pairs)[1]
+        """Smallest surface gap at x (see :func:`missed_blocks`), with a candidate list
+        as long as the frozen set's, grown if the candidates do not fit."""
+        capacity = cs.pairs.shape[0]
+        while True:
+            _, count, gap = _after_step(x, self.elements, cs.pairs, jnp.asarray(self.reach),
+                                        jnp.asarray(self.interaction), capacity)
+            if int(count) <= capacity:
+                return float(gap)
+            capacity = self.capacity_for(int(count))
 
 
 def grown_capacity(count: int, limit: int | None = None) -> int:
@@ -139,11 +148,7 @@ def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: int):
     return ~jnp.all(found), count, gap
 
 
-@jax.jit(static_argnames=("capacity",))
-def _after_step(x, ce, frozen_pairs, reach, interaction, capacity):
-    """(some interacting block at x is not frozen or the list overflowed, smallest gap)."""
-    missing, count, gap = missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity)
-    return missing | (count > capacity), gap
+_after_step = jax.jit(missed_blocks, static_argnames=("capacity",))
 
 
 def build_contact(case, disc) -> ContactProblem | None:
@@ -153,7 +158,9 @@ def build_contact(case, disc) -> ContactProblem | None:
         return None
     betas = c.densities if len(c.densities) == len(disc.beams) else [c.densities[0]] * len(
         disc.beams)
-    ce = contact_elements(disc, c.segments_per_element, betas)
+    beam_pairs = None if c.pairs is None else [
+        (case.beam_index(a), case.beam_index(b)) for a, b in c.pairs]
+    ce = contact_elements(disc, c.segments_per_element, betas, beam_pairs)
     radii = [b.section.half_depth for b in disc.beams]
     q_reg = c.q_reg if c.q_reg is not None else 1e-3 * min(radii)
     params = jnp.asarray(np.array([c.penalty, c.k, c.exponent, q_reg, c.cutoff], float))

@@ -206,10 +206,10 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
             pairs, q, count, motion = jax.device_get(ipip_candidates(
                 state, model, np.float64(h), np.float64(motion_factor), ce, reach,
                 capacity=capacity))
-            cs = contact.ipip_set(pairs, q, float(motion))
             if count > capacity:
-                capacity = contact.capacity_for(count)
+                capacity = contact.capacity_for(int(count))
                 continue
+            cs = contact.ipip_set(pairs, q, float(motion))
         t0 = time.perf_counter()
         # the acceleration is 1/(beta h^2) times a displacement difference: the increment
         # test tightens like h^2 for cut steps, down to a round-off floor of the positions
@@ -233,9 +233,13 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha:
             if count > capacity:  # overflow: reallocate and redo
                 capacity = contact.capacity_for(count)
                 continue
-            if converged and report["missing"] != 0.0 and motion_factor < 16:
-                motion_factor *= 2.0  # the step moved further than foreseen: redo it
-                continue
+            if converged and report["missing"] != 0.0:
+                if motion_factor < 16:
+                    motion_factor *= 2.0  # the step moved further than foreseen: redo it
+                    continue
+                converged = False  # never accept a step that missed a force: cut it
+                reason = ("the step moved further than the candidate search foresaw "
+                          "(a contact block was missing)")
             if converged and gap < -contact.max_penetration:
                 converged = False
                 reason = f"penetration {-gap:.3g} m exceeded max_penetration"

@@ -221,7 +221,8 @@ class Analysis(_Strict):
 
 
 class Contact(_Strict):
-    """Beam-to-beam contact (Sec. 2 of the paper) between every two different beams.
+    """Beam-to-beam contact (Sec. 2 of the paper) between every two different beams, or
+    between the pairs of beams listed in ``pairs`` (by name, e.g. [["a", "b"]]).
 
     ``densities``: one particle density per beam, or a single value for all.
     ``q_reg``: regularisation gap of the coarse-grained potential [m] (default 1e-3 times
@@ -241,6 +242,8 @@ class Contact(_Strict):
     q_reg: Positive | None = None
     max_penetration: Positive | None = None
     capacity: Annotated[int, Field(ge=1)] = 128
+    pairs: Annotated[list[Annotated[list[str], Field(min_length=2, max_length=2)]],
+                     Field(min_length=1)] | None = None
 
 
 class Solver(_Strict):
@@ -357,6 +360,18 @@ def _check_references(case: Case) -> None:
     for i, name in enumerate(point_names):
         if point_names.count(name) > 1:
             raise CaseError(f"output.points[{i}].name: duplicate point name {name!r}")
+    seen = set()
+    for i, pair in enumerate(case.contact.pairs or []):
+        for name in pair:
+            if name not in names:
+                raise CaseError(f"contact.pairs[{i}]: unknown beam {name!r} (beams are: "
+                                f"{known})")
+        if pair[0] == pair[1]:
+            raise CaseError(f"contact.pairs[{i}]: self-contact of {pair[0]!r} is not "
+                            f"implemented; list pairs of different beams")
+        if frozenset(pair) in seen:
+            raise CaseError(f"contact.pairs[{i}]: the pair {pair} is listed twice")
+        seen.add(frozenset(pair))
     nd = len(case.contact.densities)
     if nd not in (1, len(case.beams)):
         raise CaseError(f"contact.densities: give one value per beam ({len(case.beams)}) or "
