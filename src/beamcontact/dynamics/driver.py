@@ -88,11 +88,11 @@ REPORT = ("converged", "iterations", "residual_norm", "initial_residual_norm", "
 @partial(jax.jit, static_argnames=("max_iterations", "law", "capacity"))
 def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, motion_factor,
                ce=None, params=None, reach=0.0, interaction=0.0, cs=None, *,
-               max_iterations: int,
-               law: str = "none", capacity: int = 0):
+               max_iterations: int, law: str = "none", capacity: int = 0):
     """One attempt at a step, fused into a single dispatch: predictor, broad phase and
-    coarse-grained block weights (unless ``cs`` is given, as IPIP's host selection does),
-    the HHT-alpha Newton solve, the post-step contact checks and the diagnostics.
+    culling of the candidate blocks to those within ``interaction`` plus the motion
+    (unless ``cs`` is given, as IPIP's host selection does), the HHT-alpha Newton solve,
+    the post-step contact checks and the diagnostics.
 
     Returns (new state, report): report is a float64 vector of the scalars
     named in :data:`REPORT` (Newton status, candidate count, whether a pair was missed,
