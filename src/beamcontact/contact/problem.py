@@ -51,12 +51,13 @@ class ContactProblem:
 
     def frozen_set(self, x_pred, motion: float, capacity: int) -> tuple[ContactSet, int]:
         """Candidate blocks (and IPIP pair weights) for a step; returns (set, count)."""
-        margin = jnp.asarray(self.reach + motion)
         if self.law == "cg":
-            pairs, count = _cg_set(x_pred, self.elements, margin,
-                                   jnp.asarray(self.interaction + 2.0 * motion), capacity)
+            pairs, count = _cg_set(x_pred, self.elements, jnp.asarray(self.reach),
+                                   jnp.asarray(self.interaction), jnp.asarray(motion),
+                                   capacity=capacity)
             return ContactSet(pairs, None, self.params), int(count)
-        pairs, q, count = _candidate_gaps(x_pred, self.elements, margin, capacity)
+        pairs, q, count = _candidate_gaps(x_pred, self.elements,
+                                          jnp.asarray(self.reach + motion), capacity)
         return self.ipip_set(pairs, q, motion), int(count)
 
     def ipip_set(self, pairs, q, motion: float) -> ContactSet:
@@ -117,16 +118,24 @@ def grown_capacity(count: int, limit: int | None = None) -> int:
     return power if limit is None else max(1, min(power, limit))
 
 
-@jax.jit(static_argnames=("capacity",))
-def _cg_set(x, ce, margin, limit, capacity):
-    pairs, count = candidate_pairs(x, ce, margin, capacity)
-    return near_blocks(x, ce, pairs, limit), count
+def cg_candidates(x, ce, reach, interaction, motion, capacity: int):
+    """Coarse-grained blocks to freeze at the predicted x: the box candidates (boxes grown
+    by reach + motion) culled to those with a point pair closer than
+    interaction + 2 motion; returns (pairs, number of box candidates)."""
+    pairs, count = candidate_pairs(x, ce, reach + motion, capacity)
+    return near_blocks(x, ce, pairs, interaction + 2.0 * motion), count
 
 
-@jax.jit(static_argnames=("capacity",))
-def _candidate_gaps(x, ce, margin, capacity):
+_cg_set = jax.jit(cg_candidates, static_argnames=("capacity",))
+
+
+def candidate_gaps(x, ce, margin, capacity: int):
+    """IPIP candidates at x: (pairs, the gaps of all their point pairs, count)."""
     pairs, count = candidate_pairs(x, ce, margin, capacity)
     return pairs, block_gaps(x, ce, pairs), count
+
+
+_candidate_gaps = jax.jit(candidate_gaps, static_argnames=("capacity",))
 
 
 def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: int):

@@ -18,9 +18,13 @@ import numpy as np
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
-from beamcontact.contact.blocks import ContactSet, block_gaps, near_blocks
-from beamcontact.contact.broadphase import candidate_pairs
-from beamcontact.contact.problem import ContactProblem, missed_blocks
+from beamcontact.contact.blocks import ContactSet
+from beamcontact.contact.problem import (
+    ContactProblem,
+    candidate_gaps,
+    cg_candidates,
+    missed_blocks,
+)
 from beamcontact.dynamics.hht import DynState, hht_step
 from beamcontact.solvers.newton import NewtonOptions
 
@@ -103,10 +107,9 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, motion_facto
     report["min_gap"] = jnp.asarray(jnp.nan)
     if law != "none":
         if cs is None:
-            x_pred = _predicted_x(state, model, h)
-            motion = motion_factor * _motion(state, h)
-            pairs, count = candidate_pairs(x_pred, ce, reach + motion, capacity)
-            pairs = near_blocks(x_pred, ce, pairs, interaction + 2.0 * motion)
+            pairs, count = cg_candidates(_predicted_x(state, model, h), ce, reach,
+                                         interaction, motion_factor * _motion(state, h),
+                                         capacity)
             cs = ContactSet(pairs, None, params)
             report["count"] = count
     new, res = hht_step(state, model, h, alpha, rtol, utol, max_iterations, ce, cs, law)
@@ -146,10 +149,9 @@ def ipip_candidates(state: DynState, model: Model, h, motion_factor, ce, reach, 
                     capacity: int):
     """Predictor, motion bound, candidate blocks and their point-pair gaps in one dispatch,
     for IPIP's host selection: (pairs, gaps, count, motion)."""
-    x_pred = _predicted_x(state, model, h)
     motion = motion_factor * _motion(state, h)
-    pairs, count = candidate_pairs(x_pred, ce, reach + motion, capacity)
-    return pairs, block_gaps(x_pred, ce, pairs), count, motion
+    return (*candidate_gaps(_predicted_x(state, model, h), ce, reach + motion, capacity),
+            motion)
 
 
 def solve_dynamic(model: Model, state: DynState, t_end: float, dt: float, alpha: float,
