@@ -21,7 +21,7 @@ def _element():
     x_e = x_e + 0.05 * rng.normal(size=x_e.shape)
     v_e = jnp.asarray(rng.normal(size=x_e.shape))
     a_e = jnp.asarray(rng.normal(size=x_e.shape))
-    data = (blk.R[e], blk.dR[e], blk.wq[e], blk.g_ref[e], blk.rho_area, blk.rho_inertia)
+    data = (blk.R[e], blk.dR[e], blk.wq[e], blk.g_ref[e], blk.rho_area[e], blk.rho_inertia[e])
     return x_e, v_e, a_e, data
 
 
@@ -94,8 +94,8 @@ def test_time_step_inertia_residual_and_tangent():
     for e in range(blk.conn.shape[0]):
         c = blk.conn[e]
         f = element_inertia_force(x[c], v.reshape(-1, 2)[c], a.reshape(-1, 2)[c], blk.R[e],
-                                  blk.dR[e], blk.wq[e], blk.g_ref[e], blk.rho_area,
-                                  blk.rho_inertia)
+                                  blk.dR[e], blk.wq[e], blk.g_ref[e], blk.rho_area[e],
+                                  blk.rho_inertia[e])
         np.add.at(ref, np.asarray(element_dofs(c)), np.asarray(f).ravel())
     np.testing.assert_allclose(r, ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
 

@@ -105,17 +105,38 @@ def discretize(case: Case) -> Discretization:
     return Discretization(tuple(infos), offset)
 
 
-def _block(info: BeamInfo, beam: Beam) -> BeamBlock:
+def _element_data(info: BeamInfo, beam: Beam) -> dict:
+    """Host arrays of every element of one beam, keyed by the BeamBlock fields."""
     mesh = info.mesh
     g, K = _reference_metric(mesh)
     sec = info.section
-    return BeamBlock(
-        conn=jnp.asarray(mesh.conn + info.offset), R=as_float(mesh.R), dR=as_float(mesh.dR),
-        ddR=as_float(mesh.ddR), wq=as_float(mesh.wq), g_ref=as_float(g), K_ref=as_float(K),
-        eta=as_float(sec.eta), w_eta=as_float(sec.weights), E=as_float(beam.material.E),
-        rho_area=as_float(beam.material.density * sec.area),
-        rho_inertia=as_float(beam.material.density * sec.inertia),
-        gravity_on=as_float(1.0 if beam.gravity else 0.0))
+    n_el = mesh.conn.shape[0]
+
+    def each(value):
+        return np.broadcast_to(np.asarray(value, float), (n_el, *np.shape(value)))
+
+    return {"conn": mesh.conn + info.offset, "R": mesh.R, "dR": mesh.dR, "ddR": mesh.ddR,
+            "wq": mesh.wq, "g_ref": g, "K_ref": K, "eta": each(sec.eta),
+            "w_eta": each(sec.weights), "E": each(beam.material.E),
+            "rho_area": each(beam.material.density * sec.area),
+            "rho_inertia": each(beam.material.density * sec.inertia),
+            "gravity_on": each(1.0 if beam.gravity else 0.0)}
+
+
+def _blocks(disc: Discretization, case: Case) -> tuple[BeamBlock, ...]:
+    """One BeamBlock per shape of element data (degree, Gauss points, section points),
+    the elements of all beams of that shape concatenated in beam order."""
+    groups: dict[tuple, list[dict]] = {}
+    for info, beam in zip(disc.beams, case.beams, strict=True):
+        data = _element_data(info, beam)
+        shape = (data["R"].shape[1:], data["eta"].shape[1:])
+        groups.setdefault(shape, []).append(data)
+    blocks = []
+    for parts in groups.values():
+        cat = {k: np.concatenate([d[k] for d in parts]) for k in parts[0]}
+        conn = jnp.asarray(cat.pop("conn"))
+        blocks.append(BeamBlock(conn=conn, **{k: as_float(v) for k, v in cat.items()}))
+    return tuple(blocks)
 
 
 def _point_loads(case: Case, disc: Discretization) -> PointLoads:
@@ -153,7 +174,7 @@ def build_model(case: Case, disc: Discretization | None = None) -> tuple[Model, 
     disc = discretize(case) if disc is None else disc
     x_ref = np.concatenate([b.curve.points for b in disc.beams])
     model = Model(
-        beams=tuple(_block(info, b) for info, b in zip(disc.beams, case.beams, strict=True)),
+        beams=_blocks(disc, case),
         loads=_point_loads(case, disc), x_ref=as_float(x_ref),
         free=as_float(~supported_dofs(case, disc)), gravity=as_float(case.analysis.gravity))
     return model, disc

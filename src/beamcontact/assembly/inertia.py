@@ -49,19 +49,21 @@ def inertia_residual_tangent(u, u_n, v_n, a_n, coeffs, model: Model):
         def at_points(B, w, c=c):  # (E, Q, 2): B_q applied to the element's w
             return jnp.einsum("eqk,ekd->eqd", B, w[c])
 
-        def translation(d, d_n, v_n, a_n, ds_q, blk=blk):
-            return blk.rho_area * ds_q * newmark_kinematics(d, d_n, v_n, a_n, coeffs)[1]
+        def translation(d, d_n, v_n, a_n, rho_ds):
+            return rho_ds * newmark_kinematics(d, d_n, v_n, a_n, coeffs)[1]
 
-        def rotation(d1, g1_ref, d1_n, v1_n, a1_n, ds_q, blk=blk):
+        def rotation(d1, g1_ref, d1_n, v1_n, a1_n, rho_ds):
             v1, a1 = newmark_kinematics(d1, d1_n, v1_n, a1_n, coeffs)
-            return blk.rho_inertia * ds_q * rotational_acceleration(g1_ref + d1, v1, a1)
+            return rho_ds * rotational_acceleration(g1_ref + d1, v1, a1)
 
         def both(f):
             return jax.vmap(jax.vmap(f)), jax.vmap(jax.vmap(jax.jacfwd(f)))
 
-        t_args = (*(at_points(blk.R, w) for w in (u2, un2, vn2, an2)), ds)
+        t_args = (*(at_points(blk.R, w) for w in (u2, un2, vn2, an2)),
+                  blk.rho_area[:, None] * ds)
         r_args = (at_points(blk.dR, u2), at_points(blk.dR, model.x_ref),
-                  *(at_points(blk.dR, w) for w in (un2, vn2, an2)), ds)
+                  *(at_points(blk.dR, w) for w in (un2, vn2, an2)),
+                  blk.rho_inertia[:, None] * ds)
         (t_f, t_j), (r_f, r_j) = both(translation), both(rotation)
         r_e = (jnp.einsum("eqk,eqa->eka", blk.R, t_f(*t_args))
                + jnp.einsum("eqk,eqa->eka", blk.dR, r_f(*r_args)))
@@ -85,11 +87,12 @@ def inertia_force_and_mass(u, v, a, model: Model):
     for blk in model.beams:
         c = blk.conn
 
-        def local(ae_flat, x_e, v_e, R, dR, wq, g_ref, blk=blk):
+        def local(ae_flat, x_e, v_e, R, dR, wq, g_ref, rho_area, rho_inertia):
             return element_inertia_force(x_e, v_e, ae_flat.reshape(-1, 2), R, dR, wq, g_ref,
-                                         blk.rho_area, blk.rho_inertia).ravel()
+                                         rho_area, rho_inertia).ravel()
 
-        args = (a2[c].reshape(c.shape[0], -1), x[c], v2[c], blk.R, blk.dR, blk.wq, blk.g_ref)
+        args = (a2[c].reshape(c.shape[0], -1), x[c], v2[c], blk.R, blk.dR, blk.wq, blk.g_ref,
+                blk.rho_area, blk.rho_inertia)
         dofs = element_dofs(c)
         r = r.at[dofs].add(jax.vmap(local)(*args))
         M = M.at[dofs[:, :, None], dofs[:, None, :]].add(jax.vmap(jax.jacfwd(local))(*args))
@@ -104,8 +107,8 @@ def kinetic_energy_and_momentum(u, v, model: Model):
     p = jnp.zeros(2)
     for blk in model.beams:
         c = blk.conn
-        e_kin += jnp.sum(jax.vmap(element_kinetic_energy, (0, 0, 0, 0, 0, 0, None, None))(
+        e_kin += jnp.sum(jax.vmap(element_kinetic_energy)(
             x[c], v2[c], blk.R, blk.dR, blk.wq, blk.g_ref, blk.rho_area, blk.rho_inertia))
-        p += jnp.sum(jax.vmap(element_momentum, (0, 0, 0, 0, None))(
+        p += jnp.sum(jax.vmap(element_momentum)(
             v2[c], blk.R, blk.wq, blk.g_ref, blk.rho_area), axis=0)
     return e_kin, p

@@ -25,12 +25,14 @@ def _pytree(cls=None, *, meta=()):
 
 @_pytree
 class BeamBlock:
-    """All elements of one beam.
+    """All elements of the beams of one shape (degree, Gauss points, section points): the
+    kernels run over all of them in one ``vmap``, so the number of beams does not multiply
+    the number of operations.
 
     Shapes: conn (n_el, n_loc) global control-point indices; R, dR, ddR (n_el, n_qp, n_loc);
-    wq, g_ref, K_ref (n_el, n_qp); eta, w_eta (n_eta,); scalars E, rho_area (mass per
-    reference length), rho_inertia (rho I, rotational inertia per reference length),
-    gravity_on (1.0 or 0.0).
+    wq, g_ref, K_ref (n_el, n_qp); eta, w_eta (n_el, n_eta); per element: E, rho_area (mass
+    per reference length), rho_inertia (rho I, rotational inertia per reference length),
+    gravity_on (1.0 or 0.0), shape (n_el,).
     """
 
     conn: jax.Array

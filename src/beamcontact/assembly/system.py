@@ -35,17 +35,18 @@ def _beam_residual_tangent(x, blk: BeamBlock, lam, gravity):
     D = jnp.stack([blk.dR, blk.ddR], axis=2)  # (E, Q, 2, n): the rows giving g1 and g1'
     y = jnp.einsum("eqsk,ekd->eqsd", D, xe).reshape(n_el, n_qp, 4)
 
-    def density(y_q, g_ref, K_ref, wq):
-        return wq * point_strain_energy(y_q, g_ref, K_ref, blk.eta, blk.w_eta, blk.E)
+    def density(y_q, g_ref, K_ref, wq, eta, w_eta, E):
+        return wq * point_strain_energy(y_q, g_ref, K_ref, eta, w_eta, E)
 
     def at_points(f):
-        return jax.vmap(jax.vmap(f))(y, blk.g_ref, blk.K_ref, blk.wq)
+        per_point = jax.vmap(f, (0, 0, 0, 0, None, None, None))
+        return jax.vmap(per_point)(y, blk.g_ref, blk.K_ref, blk.wq, blk.eta, blk.w_eta, blk.E)
 
     dpsi = at_points(jax.grad(density)).reshape(n_el, n_qp, 2, 2)
     d2psi = at_points(jax.hessian(density)).reshape(n_el, n_qp, 2, 2, 2, 2)
     r_e = jnp.einsum("eqsk,eqsa->eka", D, dpsi)
     k_e = jnp.einsum("eqsk,eqsatb,eqtl->ekalb", D, d2psi, D)
-    r_grav = jax.vmap(jax.grad(element_gravity_potential), (0, 0, 0, 0, None, None))(
+    r_grav = jax.vmap(jax.grad(element_gravity_potential), (0, 0, 0, 0, 0, None))(
         xe, blk.R, blk.wq, blk.g_ref, blk.rho_area * blk.gravity_on, gravity)
     m = 2 * xe.shape[1]
     return (r_e + lam * r_grav).reshape(n_el, m), k_e.reshape(n_el, m, m)
@@ -62,9 +63,9 @@ def energies(u: jax.Array, model: Model, lam, load_state: LoadState) -> dict:
     e_grav = 0.0
     for blk in model.beams:
         xe = x[blk.conn]
-        e_strain += jnp.sum(jax.vmap(element_strain_energy, (0, 0, 0, 0, 0, 0, None, None, None))(
+        e_strain += jnp.sum(jax.vmap(element_strain_energy)(
             xe, blk.dR, blk.ddR, blk.wq, blk.g_ref, blk.K_ref, blk.eta, blk.w_eta, blk.E))
-        e_grav += lam * jnp.sum(jax.vmap(element_gravity_potential, (0, 0, 0, 0, None, None))(
+        e_grav += lam * jnp.sum(jax.vmap(element_gravity_potential, (0, 0, 0, 0, 0, None))(
             xe, blk.R, blk.wq, blk.g_ref, blk.rho_area * blk.gravity_on, model.gravity))
     ld = model.loads
     e_ext = jnp.sum(jax.vmap(_load_energy, (0, 0, 0, 0, 0, 0, 0, None))(
