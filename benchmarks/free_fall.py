@@ -28,6 +28,7 @@ from beamcontact.assembly.model import initial_load_state  # noqa: E402
 from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
 from beamcontact.contact.problem import build_contact  # noqa: E402
 from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities  # noqa: E402
+from beamcontact.runner import step_control  # noqa: E402
 from beamcontact.dynamics.hht import initial_state  # noqa: E402
 from beamcontact.io.case import parse_case  # noqa: E402
 from beamcontact.solvers.newton import NewtonOptions  # noqa: E402
@@ -63,9 +64,8 @@ def run(model_name: str, t_end: float) -> None:
             kept["impact"] = s.state
 
     t0 = time.perf_counter()
-    res = solve_dynamic(model, state, an.t_end, an.dt, an.alpha, opts, disc.length_scale,
-                        case.solver.max_cutbacks, contact=contact, capacity=cap,
-                        energy_tol=case.solver.energy_tol, on_step=keep)
+    res = solve_dynamic(model, state, an.t_end, an.alpha, opts, disc.length_scale,
+                        step_control(case), contact=contact, capacity=cap, on_step=keep)
     wall = time.perf_counter() - t0
     run_time = wall - res.compile_time
     share = float("nan")

@@ -209,3 +209,109 @@ def test_compilation_cache_location_and_identical_results(tmp_path, monkeypatch)
         runs.append((out / "history.csv").read_text())
     assert any((tmp_path / "cache").iterdir())  # the compiled step was stored
     assert runs[0] == runs[1] == runs[2]
+
+
+# --- mechanisms: static beams that nothing holds -------------------------------------------
+
+def _one_line_error(proc, start):
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(start), proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize(("supports", "says"), [
+    ([], "it can translate and rotate freely (3 rigid-body modes"),
+    ([{"at": "start", "type": "pinned"}], "it can rotate about (0, 0) (1 rigid-body mode")])
+def test_static_mechanism_without_contact_is_invalid_input(tmp_path, supports, says):
+    """No contact partner can hold the beam: exit 2 before anything runs, naming the key."""
+    raw = _mutate(("beams", 0, "supports"), supports)
+    raw["loads"] = [{"beam": "cantilever", "at": "end", "force": [0.0, -1.0]}]
+    case = _write_case(tmp_path / "mech.toml", raw)
+    for command in (("check", case), ("run", case, "--out", tmp_path / "o", "--quiet")):
+        proc = _cli(*command)
+        assert proc.returncode == 2, proc.stdout + proc.stderr
+        _one_line_error(proc, "error: beams[0] (cantilever).supports: the beam is a mechanism")
+        assert says in proc.stderr and "add supports" in proc.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_static_beam_not_held_by_contact_stops_the_solver(tmp_path):
+    """A free beam above a supported one may be held by contact, so the case is valid; at
+    the start nothing holds it (no penetration): the solver stops at once, exit 1."""
+    raw = copy.deepcopy(BASE)
+    raw["beams"][0]["supports"] = [{"at": "start", "type": "pinned"},
+                                   {"at": "end", "type": "pinned"}]
+    upper = copy.deepcopy(raw["beams"][0])
+    upper.update(name="upper", line={"start": [0.25, 0.02], "end": [0.75, 0.02]}, supports=[],
+                 elements=4)
+    raw["beams"].append(upper)
+    raw["loads"] = [{"beam": "upper", "at": 0.5, "force": [0.0, -1.0]}]
+    raw["contact"] = {"model": "ipip", "segments_per_element": 4}
+    case = _write_case(tmp_path / "float.toml", raw)
+    assert _cli("check", case).returncode == 0
+    out = tmp_path / "o"
+    proc = _cli("run", case, "--out", out, "--quiet")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "failed: the stiffness matrix is singular: beam" in proc.stdout
+    assert "3 rigid-body modes not restrained by its supports or by contact" in proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["steps"] == 0
+    assert len(read_history(out / "history.csv")["load_factor"]) == 1
+
+
+# --- output folders and files that cannot be written ----------------------------------------
+
+def test_output_that_cannot_be_created_is_invalid_input(tmp_path):
+    """A regular file in the way of --out: one line naming the path and why, exit 2."""
+    blocker = tmp_path / "some_file.txt"
+    blocker.write_text("not a folder")
+    runs = tmp_path / "run"
+    (runs).mkdir()
+    (runs / "history.csv").write_text("step,load_factor,tip_uy\n0,0.0,0.0\n1,1.0,-0.1\n")
+    cases = [
+        (("run", EXAMPLE, "--out", blocker / "sub", "--quiet"),
+         f"error: --out {blocker / 'sub'}: cannot use this output folder: {blocker} is a "
+         f"file, not a folder"),
+        (("run", EXAMPLE, "--out", blocker, "--quiet"),
+         f"error: --out {blocker}: cannot use this output folder: it is a file"),
+        (("sweep", EXAMPLE, "--set", "analysis.load_steps=2,3", "--out", blocker / "s"),
+         f"error: --out {blocker / 's'}: cannot use this output folder: {blocker} is a file"),
+        (("compare", runs, "--point", "tip", "--out", blocker / "c.png"),
+         f"error: --out {blocker / 'c.png'}: cannot write this file: {blocker} is a file"),
+        (("compare", runs, "--point", "tip", "--out", runs),
+         f"error: --out {runs}: cannot write this file: it is a folder"),
+    ]
+    for command, start in cases:
+        proc = _cli(*command)
+        assert proc.returncode == 2, proc.stdout + proc.stderr
+        _one_line_error(proc, start)
+    assert blocker.read_text() == "not a folder"
+    # a missing folder of the PNG is created
+    proc = _cli("compare", runs, "--point", "tip", "--out", tmp_path / "new" / "c.png")
+    assert proc.returncode == 0 and (tmp_path / "new" / "c.png").stat().st_size > 0
+
+
+def test_output_folder_without_write_permission(tmp_path, monkeypatch):
+    """The probe writes a temporary file: a folder where that fails is named with the
+    reason (simulated, since tests may run as root, who may write anywhere)."""
+    import beamcontact.cli as cli
+
+    def refuse(*_, **__):
+        raise PermissionError(13, "Permission denied")
+
+    assert cli._folder_problem(tmp_path / "a" / "b") is None
+    monkeypatch.setattr(cli.tempfile, "TemporaryFile", refuse)
+    assert cli._folder_problem(tmp_path / "a" / "b") == \
+        f"cannot write in {tmp_path} (permission denied)"
+    assert cli._folder_problem(tmp_path) == "cannot write in it (permission denied)"
+    assert not (tmp_path / "a").exists()  # nothing is created by the check
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write in read-only folders")
+def test_read_only_output_folder_is_invalid_input(tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o555)
+    proc = _cli("run", EXAMPLE, "--out", locked / "o", "--quiet")
+    assert proc.returncode == 2
+    _one_line_error(proc, f"error: --out {locked / 'o'}: cannot use this output folder: "
+                          f"cannot write in {locked} (permission denied)")

@@ -20,6 +20,7 @@ from beamcontact.contact.laws import cg_constant, cg_potential
 from beamcontact.contact.problem import build_contact
 from beamcontact.contact.select import closest_pair_weights
 from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities
+from beamcontact.runner import step_control
 from beamcontact.dynamics.hht import initial_state
 from beamcontact.io.case import CaseError, parse_case
 from beamcontact.solvers.newton import NewtonOptions
@@ -269,8 +270,9 @@ def _run_collision(case, capacity=8):
     s0 = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model),
                        contact.elements, cs0, contact.law)
     rows = []
-    res = solve_dynamic(model, s0, case.analysis.t_end, case.analysis.dt, case.analysis.alpha,
-                        NewtonOptions(rtol=1e-11), disc.length_scale, contact=contact,
+    res = solve_dynamic(model, s0, case.analysis.t_end, case.analysis.alpha,
+                        NewtonOptions(rtol=1e-11), disc.length_scale, step_control(case),
+                        contact=contact,
                         capacity=capacity, on_step=lambda s: rows.append(
                             (s.t, np.asarray(s.state.u), s.diagnostics)))
     assert res.status == "completed", res.message

@@ -12,7 +12,7 @@ from beamcontact.assembly.build import build_model, point_sampler
 from beamcontact.assembly.inertia import inertia_force_and_mass
 from beamcontact.assembly.model import initial_load_state
 from beamcontact.assembly.system import potential_residual_tangent
-from beamcontact.dynamics.driver import solve_dynamic
+from beamcontact.dynamics.driver import StepControl, solve_dynamic
 from beamcontact.dynamics.hht import initial_state
 from beamcontact.solvers.newton import NewtonOptions
 
@@ -23,7 +23,8 @@ def _simulate(model, disc, t_end, dt, alpha, u0=None, v0=None, **kw):
     v0 = jnp.zeros(n) if v0 is None else jnp.asarray(v0)
     state = initial_state(u0, v0, model, initial_load_state(model))
     steps = [(0.0, np.asarray(state.u), None)]
-    res = solve_dynamic(model, state, t_end, dt, alpha, NewtonOptions(**kw), disc.length_scale,
+    res = solve_dynamic(model, state, t_end, alpha, NewtonOptions(**kw), disc.length_scale,
+                        StepControl.fixed(dt),
                         on_step=lambda s: steps.append((s.t, np.asarray(s.state.u),
                                                         s.diagnostics)))
     assert res.status == "completed", res.message

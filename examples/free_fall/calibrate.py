@@ -2,9 +2,9 @@
 
 Finds E (the same for both beams) such that the first amplitude of point A after the first
 impact is -2.25 m with the coarse-grained model (paper Sec. 5), by the secant method on
-log E. Prints one row per trial; about a minute per trial on 2 cores.
+log E. Prints one row per trial; one to two minutes per trial on 2 cores.
 
-    python examples/free_fall/calibrate.py [--target -2.25] [--e0 1e7 --e1 3e6]
+    python examples/free_fall/calibrate.py [--target -2.25] [--e0 1e6 --e1 0.95e6]
 """
 
 import argparse
@@ -38,8 +38,8 @@ def first_amplitude(E: float) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--target", type=float, default=-2.25)
-    ap.add_argument("--e0", type=float, default=1.0e7)
-    ap.add_argument("--e1", type=float, default=3.0e6)
+    ap.add_argument("--e0", type=float, default=1.0e6)
+    ap.add_argument("--e1", type=float, default=0.95e6)
     ap.add_argument("--tol", type=float, default=0.01)
     args = ap.parse_args()
     x0, x1 = math.log(args.e0), math.log(args.e1)

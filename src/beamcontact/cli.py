@@ -1,9 +1,16 @@
-"""Command line: ``beamcontact run`` and ``beamcontact check``.
+"""Command line: ``beamcontact run``, ``check``, ``compare`` and ``sweep``.
 
 Exit codes: 0 success, 1 the solver stopped (results so far are kept), 2 invalid input.
+Invalid input includes an output folder or file that cannot be created or written
+(checked before anything runs) and a static case in which a beam that its supports do
+not hold has no contact partner (a mechanism: its stiffness matrix is singular). A beam
+that may touch another is left to the solver, which stops with exit code 1 if contact
+does not hold it either (statics/restraint.py).
 """
 
+import os
 import sys
+import tempfile
 from importlib import resources
 from pathlib import Path
 from typing import Annotated
@@ -36,6 +43,65 @@ def _load(case: Path):
         return load_case(case)
     except CaseError as exc:
         _fail(str(exc), 2)
+
+
+def _check_static_restraints(parsed) -> None:
+    """Reject a static case with a beam that nothing can hold (statics/restraint.py)."""
+    if parsed.analysis.kind != "static":
+        return
+    from beamcontact.assembly.build import discretize
+    from beamcontact.statics.restraint import static_mechanisms
+
+    try:
+        disc = discretize(parsed)
+    except ValueError as exc:
+        _fail(f"beams: {exc}", 2)
+    found = static_mechanisms(parsed, disc)
+    if found:
+        more = f" (and {len(found) - 1} more beam(s) like it)" if len(found) > 1 else ""
+        _fail(found[0] + more, 2)
+
+
+def _folder_problem(path: Path, itself: bool = True) -> str | None:
+    """Why the folder ``path`` cannot be created or written, or None if it can (the reason
+    calls ``path`` "it" when ``itself``, else names it).
+
+    Nothing is created (a case error found later leaves no empty folder behind): the
+    nearest existing folder on the way must be a folder in which a file can be written,
+    found by a real probe, since permission bits alone miss read-only file systems.
+    """
+    existing = next(p for p in (path, *path.parents) if p.exists())
+    it = "it" if existing == path and itself else str(existing)
+    if not existing.is_dir():
+        return f"{it} is a file, not a folder"
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as exc:
+        return f"cannot write in {it} ({(exc.strerror or str(exc)).lower()})"
+    return None
+
+
+def _check_out_dir(path: Path) -> None:
+    """Exit with code 2, naming the folder and the reason, if ``--out`` cannot be used."""
+    problem = _folder_problem(path)
+    if problem:
+        _fail(f"--out {path}: cannot use this output folder: {problem}", 2)
+
+
+def _write_target(path: Path) -> None:
+    """Make sure the file ``--out path`` can be written (its folder is created), else exit
+    with code 2 naming the file and the reason."""
+    problem = "it is a folder" if path.is_dir() else _folder_problem(path.parent, False)
+    if problem is None and path.exists() and not os.access(path, os.W_OK):
+        problem = "permission denied"
+    if problem is None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            problem = (exc.strerror or str(exc)).lower()
+    if problem:
+        _fail(f"--out {path}: cannot write this file: {problem}", 2)
 
 
 def _fresh_dir(stem: str) -> Path:
@@ -71,8 +137,10 @@ def run(
     parsed, text = _load(case)
     if restart and out is None:
         _fail("--restart needs --out DIR, the folder of the run to continue", 2)
+    _check_static_restraints(parsed)
     out = _fresh_dir(case.parent.name if case.name == "case.toml" else case.stem) \
         if out is None else out
+    _check_out_dir(out)
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
@@ -94,6 +162,8 @@ def run(
     typer.echo(f"steps {summary['steps']}, Newton iterations {summary['newton_iterations']}, "
                f"cut-backs {summary['cutbacks']}, wall time {summary['wall_time_s']:.2f} s "
                f"(compile {summary['compile_time_s']:.2f} s)")
+    for warning in summary.get("warnings", []):
+        typer.echo(f"warning: {warning}", err=True)
     typer.echo(f"results in {out}")
     if summary["status"] != "completed":
         raise typer.Exit(1)
@@ -128,7 +198,11 @@ def compare(
         curves.append((labels[k] if labels else run_dir.name, h))
     if len({"t" in h for _, h in curves}) > 1:
         _fail("cannot overlay static (load_factor) and dynamic (t) runs", 2)
-    plot_run_overlay(curves, column, out)
+    _write_target(out)
+    try:
+        plot_run_overlay(curves, column, out)
+    except OSError as exc:  # e.g. the folder changed meanwhile
+        _fail(f"--out {out}: cannot write this file: {(exc.strerror or str(exc)).lower()}", 2)
     typer.echo(f"wrote {out}")
 
 
@@ -181,6 +255,7 @@ def sweep(
         return
     if out is None:
         _fail("--out DIR is required (the sweep folder; rerunning into it resumes)", 2)
+    _check_out_dir(out)
     points = [p.name for p in parsed.output.points]
     n_workers = workers or max(1, min(os.cpu_count() or 1, len(members)))
     try:
@@ -251,6 +326,7 @@ class _SweepProgress:
 def check(case: Annotated[Path, typer.Argument(help="Case file (TOML).")]) -> None:
     """Validate a case file without running it."""
     parsed, _ = _load(case)
+    _check_static_restraints(parsed)
     typer.echo(f"{case}: valid ({parsed.analysis.kind}, {len(parsed.beams)} beam(s), "
                f"{len(parsed.loads)} load(s))")
 

@@ -57,12 +57,15 @@ def plot_point_histories(history: dict[str, np.ndarray], abscissa: str, points: 
 
 
 def plot_energies(history: dict[str, np.ndarray], path: Path, title: str = "") -> None:
-    """Kinetic, strain, gravity and total energy against time."""
+    """Kinetic, strain, gravity, contact and total energy against time, and the energy
+    account: E_dissipated (removed by the integrator) and E_set_change (jumps of the
+    contact set), so that a change of E_total is seen next to what explains it."""
     fig, ax = plt.subplots(figsize=(7, 4))
-    for name in ("E_kin", "E_strain", "E_gravity", "E_ext", "E_total"):
+    for name in ("E_kin", "E_strain", "E_gravity", "E_ext", "E_contact", "E_total",
+                 "E_dissipated", "E_set_change"):
         if name in history and np.any(history[name] != 0.0):
             ax.plot(history["t"], history[name], lw=2.0 if name == "E_total" else 1.2,
-                    label=name)
+                    ls=":" if name in ("E_dissipated", "E_set_change") else "-", label=name)
     _finish(fig, ax, path, "t [s]", "energy [J]", title)
 
 

@@ -23,11 +23,15 @@ from beamcontact.assembly.build import (
     polyline_matrix,
 )
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
+from beamcontact.contact.overlap import describe, initial_overlaps
 from beamcontact.contact.problem import build_contact
+from beamcontact.contact.resolution import contact_resolution, resolution_warning
 from beamcontact.dynamics.driver import (
+    DIAGNOSTICS,
     DynamicStep,
+    EnergyAccount,
+    StepControl,
     host_diagnostics,
-    next_step_size,
     solve_dynamic,
     uniform_velocities,
 )
@@ -54,7 +58,8 @@ from beamcontact.statics.driver import StaticStep, solve_static
 Progress = Callable[[float, str], None]
 
 ENERGY_COLUMNS = ["E_strain", "E_gravity", "E_ext", "E_contact", "E_total", "min_gap"]
-DYNAMIC_COLUMNS = ["E_kin", *ENERGY_COLUMNS, "p_x", "p_y"]  # then newton_iters, cutbacks
+DYNAMIC_COLUMNS = ["E_kin", *ENERGY_COLUMNS, "E_dissipated", "E_set_change", "p_x", "p_y",
+                   "error"]  # then newton_iters, cutbacks, dt
 
 
 class OutputPoints:
@@ -203,14 +208,43 @@ def _run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | No
     model, disc = build_model(case, disc)
     opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, 0.0, case.solver.utol)
     contact = build_contact(case, disc)
+    warnings = [] if restart else _check_initial_overlap(case, model, contact)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
     summary = run(case, case_text, disc, model, out_dir, opts, progress, restart, contact)
+    if contact is not None and contact.law == "cg" and summary.get("min_gap") is not None:
+        res = contact_resolution(contact.elements, contact.params, summary["min_gap"])
+        summary["cg_resolution"] = res.as_dict()
+        if res.under_resolved:
+            warnings.append(resolution_warning(res, [b.name for b in case.beams]))
+    summary["warnings"] = warnings
     summary.update({"title": case.title, "kind": case.analysis.kind,
+                    "solver": effective_settings(case),
                     "wall_time_s": time.perf_counter() - wall0, "n_dof": model.n_dof,
                     "n_elements": sum(b.mesh.n_elements for b in disc.beams),
                     "beamcontact_version": __version__})
     write_summary(out_dir / "summary.json", summary)
     return summary
+
+
+# an initial interpenetration deeper than this fraction of the smallest radius is an input
+# error; a shallower one (a hair of overlap, e.g. to start with the contact stiffness
+# engaged) is a warning
+OVERLAP_ERROR = 1e-3
+
+
+def _check_initial_overlap(case: Case, model: Model, contact) -> list[str]:
+    """Raise CaseError if beams interpenetrate in the initial configuration (naming both
+    and the place); return a warning for a shallow overlap."""
+    if contact is None:
+        return []
+    findings = initial_overlaps(np.asarray(model.x_ref), contact.elements,
+                                [b.name for b in case.beams])
+    if not findings:
+        return []
+    r_min = float(np.min(np.asarray(contact.elements.radius)))
+    if findings[0].gap < -OVERLAP_ERROR * r_min:
+        raise CaseError(f"{describe(findings)}; move the beams apart")
+    return [describe(findings)]
 
 
 def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart,
@@ -230,7 +264,7 @@ def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart,
     try:
         result = solve_static(model, case.analysis.load_steps, opts, disc.length_scale,
                               case.solver.max_cutbacks, on_step, contact,
-                              case.contact.capacity)
+                              case.contact.capacity, [b.name for b in disc.beams])
     except KeyboardInterrupt:
         _interrupted(out, out_dir)
         raise
@@ -263,11 +297,26 @@ def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, d
     _same_model(stored, case)
     if "v" not in last or last["u"].shape != (model.n_dof,):
         raise CaseError(f"--restart: {path} does not hold a dynamic run of this case")
+    if "energy_account" not in last:
+        raise CaseError(f"--restart: {path} was written by an older beamcontact without the "
+                        f"energy account; run the case again without --restart")
     state = DynState(jnp.asarray(last["parameter"]), jnp.asarray(last["u"]),
                      jnp.asarray(last["v"]), jnp.asarray(last["a"]), jnp.asarray(last["f_pot"]),
                      LoadState(jnp.asarray(last["load_theta"]),
                                jnp.asarray(last["load_tangent"])))
     return state, last
+
+
+def _account_record(diag: dict) -> np.ndarray:
+    """The energies of a saved state as results.h5 keeps them for a restart."""
+    return np.array([diag[k] for k in (*DIAGNOSTICS, "E_dissipated", "E_set_change")])
+
+
+def _account_from_record(record: np.ndarray) -> EnergyAccount:
+    """Inverse of :func:`_account_record`."""
+    values = dict(zip((*DIAGNOSTICS, "E_dissipated", "E_set_change"), record.tolist(),
+                      strict=True))
+    return EnergyAccount(values.pop("E_dissipated"), values.pop("E_set_change"), values)
 
 
 def _same_model(stored: Case, case: Case) -> None:
@@ -309,6 +358,7 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
         step0, dt_start = int(last["step"]), float(last["dt_next"])
         before = {"iterations": int(last["iterations_total"]),
                   "cutbacks": int(last["cutbacks_total"])}
+        account = _account_from_record(last["energy_account"])
         if float(state.t) >= an.t_end - 1e-12 * an.t_end:
             raise CaseError(f"--restart: the run in {out_dir} already reached t = "
                             f"{float(state.t):.6g} s >= analysis.t_end")
@@ -323,6 +373,7 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
                               None if contact is None else contact.elements, cs0,
                               "none" if contact is None else contact.law)
         step0, dt_start, before = 0, an.dt, {"iterations": 0, "cutbacks": 0}
+        account = None
         out = _Outputs(case, case_text, disc, model, out_dir, "t", DYNAMIC_COLUMNS)
     next_snapshot = [np.floor(float(state.t) / interval + 1e-9) * interval + interval]
     totals = dict(before)
@@ -333,17 +384,19 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
         out.states.write(step, t, st.u, v=st.v, a=st.a, f_pot=st.f_pot,
                          load_theta=st.load_state.theta, load_tangent=st.load_state.tangent,
                          dt=h, dt_next=dt_next, iterations_total=totals["iterations"],
-                         cutbacks_total=cutbacks)
+                         cutbacks_total=cutbacks, energy_account=_account_record(diag))
 
     if not restart:
-        save(0, 0.0, state, 0.0, 0, 0, host_diagnostics(state, model, contact, cs0), an.dt)
+        diag0 = {**host_diagnostics(state, model, contact, cs0), "error": 0.0,
+                 "E_dissipated": 0.0, "E_set_change": 0.0}
+        save(0, 0.0, state, 0.0, 0, 0, diag0, an.dt)
         out.vtk.write(0.0, out.x(state.u))
+        account = _account_from_record(_account_record(diag0))
 
     def on_step(s: DynamicStep) -> None:
         totals["iterations"] += s.iterations
         cutbacks = before["cutbacks"] + s.cutbacks
-        save(s.step, s.t, s.state, s.dt, s.iterations, cutbacks, s.diagnostics,
-             next_step_size(s.dt, an.dt, s.iterations))
+        save(s.step, s.t, s.state, s.dt, s.iterations, cutbacks, s.diagnostics, s.dt_next)
         if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
             out.vtk.write(s.t, out.x(s.state.u))
             next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval
@@ -351,11 +404,10 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
             progress(s.t / an.t_end, f"t = {s.t:.4g} s, dt = {s.dt:.3g} s")
 
     try:
-        result = solve_dynamic(model, state, an.t_end, an.dt, an.alpha, opts,
-                               disc.length_scale, case.solver.max_cutbacks,
-                               dt_start=dt_start, step0=step0, on_step=on_step,
-                               contact=contact, capacity=case.contact.capacity,
-                               energy_tol=case.solver.energy_tol)
+        result = solve_dynamic(model, state, an.t_end, an.alpha, opts, disc.length_scale,
+                               step_control(case), dt_start=dt_start, step0=step0,
+                               on_step=on_step, contact=contact,
+                               capacity=case.contact.capacity, account=account)
     except KeyboardInterrupt:
         _interrupted(out, out_dir)
         raise
@@ -366,13 +418,38 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
     iterations = before["iterations"] + result.iterations
     return {"status": result.status, "message": result.message, "steps": steps,
             "newton_iterations": iterations, "cutbacks": before["cutbacks"] + result.cutbacks,
+            "rejections": result.rejections,
             "restarted_from_step": step0 if restart else None,
             "t_final": result.t, "mean_iterations_per_step": iterations / max(steps, 1),
             "solve_time_s": result.wall_time, "compile_time_s": result.compile_time,
+            "min_step_s": float(h["dt"][1:].min()) if len(h["dt"]) > 1 else None,
+            "max_step_s": float(h["dt"][1:].max()) if len(h["dt"]) > 1 else None,
             "energy": {"E_total_initial": float(h["E_total"][0]),
                        "E_total_final": float(h["E_total"][-1]),
-                       "E_kin_max": float(h["E_kin"].max())},
+                       "E_kin_max": float(h["E_kin"].max()),
+                       "E_dissipated": float(h["E_dissipated"][-1]),
+                       "E_set_change": float(h["E_set_change"][-1]),
+                       "balance_residual": float(h["E_total"][-1] + h["E_dissipated"][-1]
+                                                 - h["E_set_change"][-1] - h["E_total"][0])},
             "extremes": out.extremes(), **contact_summary(h, out.points.names, contact)}
+
+
+def effective_settings(case: Case) -> dict:
+    """Every [solver] value, defaults included, and for dynamics the step bounds and
+    alpha actually used: enough to reproduce the run."""
+    settings = case.solver.model_dump()
+    an = case.analysis
+    if an.kind == "dynamic":
+        settings.update(dt=an.dt, dt_min=an.smallest_step, alpha=an.alpha)
+    else:
+        settings.update(load_steps=an.load_steps)
+    return settings
+
+
+def step_control(case: Case) -> StepControl:
+    """The step controller's settings of a validated dynamic case."""
+    an, so = case.analysis, case.solver
+    return StepControl(an.dt, an.smallest_step, so.error_tol, so.energy_tol, so.max_cutbacks)
 
 
 def contact_summary(h: dict, points: list[str], contact) -> dict:
@@ -390,12 +467,42 @@ def contact_summary(h: dict, points: list[str], contact) -> dict:
     out = {"min_gap": float(np.nanmin(gap)),
            "max_penetration": float(max(0.0, -np.nanmin(gap))),
            "first_impact_time": float(h["t"][hit[0]]) if hit.size else None,
-           "first_amplitude": {}}
+           "first_amplitude": {},
+           "impacts": contact_episodes(h)}
     if hit.size:
         for name in points:
             out["first_amplitude"][name] = first_excursion_extreme(h["t"][hit[0]:],
                                                                    h[f"{name}_uy"][hit[0]:])
     return out
+
+
+def contact_episodes(h: dict, level: float = 1e-4) -> list[dict]:
+    """Every contact of the run: it starts at the first step whose contact energy exceeds
+    ``level`` times the largest E_kin + E_strain + |E_contact| of the run, and ends at the
+    first step after it where it falls below a quarter of that (the hysteresis keeps a
+    grazing contact from counting as many). For each: start and end time (None if still
+    in contact at the end), the smallest gap, and the changes of the total energy, of
+    E_dissipated and of E_set_change from the step before it starts to the step where it
+    ends (E_change = E_set_change - E_dissipated)."""
+    e_con, t = np.abs(h["E_contact"]), h["t"]
+    threshold = level * float(np.max(h["E_kin"] + h["E_strain"] + e_con))
+    episodes, k, n = [], 0, len(t)
+    while k < n:
+        if not e_con[k] > threshold:
+            k += 1
+            continue
+        begin = k
+        while k < n and not e_con[k] < 0.25 * threshold:
+            k += 1
+        before, after = max(begin - 1, 0), min(k, n - 1)
+        episodes.append({
+            "start": float(t[begin]), "end": float(t[k]) if k < n else None,
+            "min_gap": float(np.min(h["min_gap"][begin:after + 1])),
+            "E_total_before": float(h["E_total"][before]),
+            "E_change": float(h["E_total"][after] - h["E_total"][before]),
+            "E_dissipated": float(h["E_dissipated"][after] - h["E_dissipated"][before]),
+            "E_set_change": float(h["E_set_change"][after] - h["E_set_change"][before])})
+    return episodes
 
 
 def first_excursion_extreme(t: np.ndarray, uy: np.ndarray, level: float = 0.01) -> dict:

@@ -36,6 +36,11 @@ class ContactProblem:
             (coarse-grained: the cutoff; IPIP: inf, every box candidate is kept).
         max_penetration: a step whose smallest gap is below -max_penetration is redone
             with a smaller time step.
+        advance_slack: distance added to a gap in the conservative advancement
+            (:mod:`beamcontact.contact.advance`): the regularisation gap q_reg for the
+            coarse-grained potential (below it the force is continued linearly, so a pair
+            can be pushed to q <= 0); max_penetration for IPIP, whose force acts only once
+            the beams overlap.
         beam_of, local_element, n_elements: numbering used by the IPIP selection.
     """
 
@@ -45,6 +50,7 @@ class ContactProblem:
     reach: float
     interaction: float
     max_penetration: float
+    advance_slack: float
     beam_of: np.ndarray
     local_element: np.ndarray
     n_elements: np.ndarray
@@ -181,5 +187,6 @@ def build_contact(case, disc) -> ContactProblem | None:
         local[e] = n_el[b]
         n_el[b] += 1
     max_pen = c.max_penetration if c.max_penetration is not None else min(radii)
-    return ContactProblem(c.model, ce, params, reach, interaction, max_pen, beam_of, local,
-                          n_el)
+    slack = q_reg if c.model == "cg" else max_pen
+    return ContactProblem(c.model, ce, params, reach, interaction, max_pen, slack, beam_of,
+                          local, n_el)

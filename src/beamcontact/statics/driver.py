@@ -4,10 +4,15 @@ The load factor lam runs from 0 to 1 in ``load_steps`` equal increments. A faile
 solve restores the last converged state and halves the increment, up to ``max_cutbacks``
 times in a row; after a success the increment grows back (doubling) to the nominal one.
 Every converged step is handed to ``on_step`` at once, so a later failure loses nothing.
+
+Before the first step, a model whose supports leave some beam free to move rigidly is
+checked for a singular tangent (statics/restraint.py): if neither supports nor contact
+hold it, the analysis stops at once with status "failed" naming the beams, instead of
+halving the load increment on NaN residuals.
 """
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import jax
@@ -24,6 +29,7 @@ from beamcontact.assembly.system import (
 )
 from beamcontact.contact.problem import ContactProblem
 from beamcontact.solvers.newton import NewtonOptions, newton
+from beamcontact.statics.restraint import beam_modes, beam_ranges, singular_tangent_message
 
 
 @dataclass(frozen=True)
@@ -68,12 +74,36 @@ def _energies(u, model, lam, state, ce=None, cs=None, law="none"):
     return {**energies(u, model, lam, state),
             "E_contact": contact_energy_of(u, model, ce, cs, law)}
 _update = jax.jit(update_load_state)
+_tangent = jax.jit(residual_tangent_with_contact, static_argnames=("law",))
+
+
+def mechanism_message(model: Model, contact: ContactProblem | None, cs, load_state,
+                      beam_names: Sequence[str] | None = None) -> str | None:
+    """The reason the static tangent at u = 0 is singular, or None (statics/restraint.py).
+
+    The tangent is assembled (at load factor 0: loads never restrain) only when some beam
+    has rigid modes its supports leave free, so supported models pay nothing.
+    """
+    x_ref, free = np.asarray(model.x_ref), np.asarray(model.free) > 0.5
+    ranges = beam_ranges([np.asarray(b.conn) for b in model.beams])
+    if not any(m.shape[1] for m in beam_modes(x_ref, free, ranges)):
+        return None
+    if beam_names is None or len(beam_names) != len(ranges):
+        labels = [f"#{i + 1} (control points {a}-{b - 1})" for i, (a, b) in enumerate(ranges)]
+    else:
+        labels = [repr(name) for name in beam_names]
+    law = "none" if contact is None else contact.law
+    ce = None if contact is None else contact.elements
+    _, K = _tangent(jnp.zeros(model.n_dof), model, jnp.asarray(0.0), load_state, ce, cs, law)
+    return singular_tangent_message(np.asarray(K), free, x_ref, ranges, labels,
+                                    contact=contact is not None)
 
 
 def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: float,
                  max_cutbacks: int = 12,
                  on_step: Callable[[StaticStep], None] | None = None,
-                 contact: ContactProblem | None = None, capacity: int = 64) -> StaticResult:
+                 contact: ContactProblem | None = None, capacity: int = 64,
+                 beam_names: Sequence[str] | None = None) -> StaticResult:
     """Ramp the loads from 0 to 1 and return the last converged state.
 
     Args:
@@ -86,6 +116,8 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         contact: the contact problem (None: no contact). Its candidate set is found at the
             start of every load step and frozen during Newton.
         capacity: initial length of the contact candidate list (grows on overflow).
+        beam_names: the beams' names in model order, for the message when the supports
+            leave a beam free (None: beams are named by number and control points).
     """
     start = time.perf_counter()
     tol = jnp.array([options.rtol, options.atol, options.utol * length])
@@ -107,10 +139,17 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         return contact.frozen_set(model.x_ref + u.reshape(-1, 2), margin, capacity)
 
     if contact is not None:
-        cs, _ = contact_set(u)
+        cs, count = contact_set(u)
+        if count > capacity:  # complete, since the singularity check needs every block
+            capacity = contact.capacity_for(count)
+            cs, _ = contact_set(u)
     if on_step is not None:
         on_step(StaticStep(0, 0.0, np.zeros(model.n_dof), 0, 0,
                            _step_values(u, model, 0.0, state, contact, cs)))
+    singular = mechanism_message(model, contact, cs, state, beam_names)
+    if singular is not None:
+        return StaticResult("failed", singular, 0, 0, 0, 0.0, np.asarray(u),
+                            time.perf_counter() - start, 0.0)
     while lam < 1.0 - 1e-12:
         dl = min(dlam, 1.0 - lam)
         if contact is not None:
