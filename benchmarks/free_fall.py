@@ -28,9 +28,9 @@ from beamcontact.assembly.model import initial_load_state  # noqa: E402
 from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
 from beamcontact.contact.problem import build_contact  # noqa: E402
 from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities  # noqa: E402
-from beamcontact.runner import step_control  # noqa: E402
 from beamcontact.dynamics.hht import initial_state  # noqa: E402
 from beamcontact.io.case import parse_case  # noqa: E402
+from beamcontact.runner import step_control  # noqa: E402
 from beamcontact.solvers.newton import NewtonOptions  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]

@@ -150,9 +150,9 @@ def test_bad_dynamic_input_is_rejected_naming_the_key(tmp_path, mutation, key):
 
 def test_library_refuses_float32():
     code = ("import beamcontact, pathlib\n"
-            "from beamcontact.io.case import load_case\n"
+            "from beamcontact.io.case import read_case_file\n"
             "from beamcontact.runner import run_case\n"
-            f"case, text = load_case({str(EXAMPLE)!r})\n"
+            f"case, text = read_case_file({str(EXAMPLE)!r})\n"
             "run_case(case, text, pathlib.Path('unused'))\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           env={"PATH": "/usr/bin:/bin", "JAX_ENABLE_X64": "0"})

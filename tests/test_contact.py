@@ -9,7 +9,6 @@ from _builders import beam
 from beamcontact.assembly.build import build_model, point_sampler
 from beamcontact.assembly.model import initial_load_state
 from beamcontact.contact.blocks import (
-    ContactSet,
     block_gaps,
     block_weights_cg,
     contact_energy,
@@ -20,12 +19,11 @@ from beamcontact.contact.laws import cg_constant, cg_potential
 from beamcontact.contact.problem import build_contact
 from beamcontact.contact.select import closest_pair_weights
 from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities
-from beamcontact.runner import step_control
 from beamcontact.dynamics.hht import initial_state
 from beamcontact.io.case import CaseError, parse_case
+from beamcontact.runner import step_control
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
-
 
 # --- eq. (9) against brute-force integration of eq. (8) ----------------------------------
 

@@ -67,7 +67,7 @@ def test_benchmark_first_impact_and_amplitude(tmp_path, model):
 
 
 def test_first_amplitude_ignores_wiggles_about_zero():
-    from beamcontact.runner import first_excursion_extreme
+    from beamcontact.summary import first_excursion_extreme
 
     t = np.arange(9.0)
     uy = np.array([-1e-7, 1e-8, -0.5, -2.0, -1.0, 0.01, 0.3, 1.0, -2.5])

@@ -198,7 +198,7 @@ def test_cantilever_tip_load_matches_elastica():
     ref = _elastica_tip(ks)
     # literature check of the reference (Mattiasson 1981): k = 1 -> vertical 0.30172 L
     assert abs(-ref[0, 1] - 0.30172) < 2e-5
-    for (lam, u, _), tip_ref in zip(states[1:], ref, strict=True):
+    for (_lam, u, _), tip_ref in zip(states[1:], ref, strict=True):
         tip = _point(model, disc, u, "b", 1.0)
         deflection = tip - [L, 0.0]
         ref_deflection = tip_ref * L - [L, 0.0]

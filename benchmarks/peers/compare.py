@@ -24,16 +24,17 @@ PEERS = {"PyElastica": HERE / "results" / "pyelastica.csv",
          "Exudyn": HERE / "results" / "exudyn.csv"}
 
 
-def drop_case(model: str, t_end: float = 1.2) -> dict:
+def drop_case(model: str, t_end: float = 1.2, segments: int = 20,
+              penalty: float = 1.0e6) -> dict:
     """The peer drop as a beamcontact case (the bundled benchmark's discretisation and
     contact parameters, with the peers' geometry and material)."""
     material = {"E": 1.0e7, "density": 1000.0}
     section = {"shape": "circle", "radius": 0.1}
-    contact = {"model": model, "segments_per_element": 20}
+    contact = {"model": model, "segments_per_element": segments}
     if model == "cg":
         contact.update(exponent=12, k=5.0e-25, densities=[1.0, 1.0], cutoff=0.3)
     else:
-        contact.update(penalty=1.0e6)
+        contact.update(penalty=penalty)
     return {
         "title": f"Peer drop: 4 m beam onto a pinned 10 m beam ({model})",
         "analysis": {"kind": "dynamic", "t_end": t_end, "dt": 1.0e-3, "alpha": 0.0,

@@ -80,9 +80,8 @@ import shutil
 import tempfile
 import time
 
-import numpy as np
-
 import exudyn as exu
+import numpy as np
 from exudyn.beams import GenerateBeamElementsAlongLine
 from exudyn.itemInterface import (
     MarkerBodyPosition,

@@ -75,10 +75,9 @@ import argparse
 import csv
 import time
 
+import elastica as ea
 import numpy as np
 from numba import njit
-
-import elastica as ea
 
 G = 9.81
 R = 0.1

@@ -27,6 +27,8 @@ def main() -> None:
     ap.add_argument("--t-end", type=float, default=2.0)
     ap.add_argument("--tol", type=float, nargs="+", default=[1e-5, 2.5e-6, 6.25e-7, 1.5625e-7])
     ap.add_argument("--out", type=Path, default=Path("results_convergence"))
+    ap.add_argument("--segments", type=int, default=None,
+                    help="contact.segments_per_element (default: the case file's)")
     args = ap.parse_args()
     beamcontact.enable_x64()
     from beamcontact.io.case import parse_case
@@ -38,6 +40,8 @@ def main() -> None:
         raw = tomllib.loads((HERE / "case_cg.toml").read_text())
         raw["analysis"]["t_end"] = args.t_end
         raw["solver"] = {"error_tol": tol, "energy_tol": 100.0 * tol}
+        if args.segments is not None:
+            raw["contact"]["segments_per_element"] = args.segments
         out = args.out / f"error_tol={tol:g}"
         t0 = time.perf_counter()
         s = run_case(parse_case(raw), "", out)

@@ -1,11 +1,16 @@
-"""Command line: ``beamcontact run``, ``check``, ``compare`` and ``sweep``.
+"""Command line: ``beamcontact run``, ``check``, ``compare`` and ``sweep``; ``--version``.
 
-Exit codes: 0 success, 1 the solver stopped (results so far are kept), 2 invalid input.
-Invalid input includes an output folder or file that cannot be created or written
-(checked before anything runs) and a static case in which a beam that its supports do
-not hold has no contact partner (a mechanism: its stiffness matrix is singular). A beam
+Exit codes: 0 success, 1 the solver stopped (results so far are kept), 2 invalid input,
+130 interrupted by Ctrl-C (results up to the last accepted step, or the finished runs of a
+sweep, are kept). Invalid input includes an output folder or file that cannot be created or
+written (checked before anything runs) and a static case in which a beam that its supports
+do not hold has no contact partner (a mechanism: its stiffness matrix is singular). A beam
 that may touch another is left to the solver, which stops with exit code 1 if contact
 does not hold it either (statics/restraint.py).
+
+Progress is drawn within 80 columns at any terminal width (progress.progress_bar for a run,
+_SweepProgress for a sweep). Help texts are rich markup: a literal ``[`` that could start a
+tag is written ``\\[`` (e.g. ``\\[solver]``), or the markup renderer swallows it.
 """
 
 import os
@@ -23,6 +28,28 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
 BUNDLED_CASE = "free_fall/case_cg.toml"
 
 
+def _print_version(value: bool) -> None:
+    """Print ``beamcontact <version>`` and exit 0 when ``--version`` is given.
+
+    Eager, so it answers before any command is parsed; it reads the version from the
+    package, which imports no JAX, so it is instant.
+    """
+    if value:
+        from beamcontact import __version__
+
+        typer.echo(f"beamcontact {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[bool, typer.Option(
+        "--version", callback=_print_version, is_eager=True,
+        help="Print the version and exit.")] = False,
+) -> None:
+    """Options before the command (``beamcontact --version``); the commands do the work."""
+
+
 def bundled_case() -> Path:
     """Path of the bundled benchmark case (installed package or source checkout)."""
     installed = resources.files("beamcontact") / "examples" / BUNDLED_CASE
@@ -37,10 +64,10 @@ def _fail(message: str, code: int) -> None:
 
 
 def _load(case: Path):
-    from beamcontact.io.case import CaseError, load_case
+    from beamcontact.io.case import CaseError, read_case_file
 
     try:
-        return load_case(case)
+        return read_case_file(case)
     except CaseError as exc:
         _fail(str(exc), 2)
 
@@ -122,13 +149,14 @@ def run(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
     restart: Annotated[bool, typer.Option(
         "--restart", help="Continue the dynamic run in --out from its last saved state to "
-        "the case's t_end (only t_end, [solver] and [output] may have changed).")] = False,
+        "the case's t_end (only t_end, \\[solver] and \\[output] may have changed).")] = False,
 ) -> None:
-    """Run a case and write history.csv, summary.json, results.h5, VTU/PVD and plots."""
-    import beamcontact
-    from beamcontact.io.case import CaseError
-    from beamcontact.runner import run_case
+    """Run a case and write history.csv, summary.json, results.h5, VTU/PVD and plots.
 
+    Exit code 0 when the run completed, 1 when the solver stopped, 2 for invalid input,
+    130 when interrupted (Ctrl-C; the results up to the last accepted step are kept).
+    """
+    import beamcontact
     from beamcontact._cache import enable_compilation_cache
 
     beamcontact.enable_x64()
@@ -141,23 +169,43 @@ def run(
     out = _fresh_dir(case.parent.name if case.name == "case.toml" else case.stem) \
         if out is None else out
     _check_out_dir(out)
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    summary = _run_with_progress(parsed, text, out, parsed.title or case.name,
+                                 show=not quiet, restart=restart)
+    _report_run(summary, out)
 
-    columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
-               TimeElapsedColumn())
-    with Progress(*columns, disable=quiet, transient=False) as bar:
-        task = bar.add_task(parsed.title or case.name, total=1.0, info="compiling")
 
-        def progress(fraction: float, info: str) -> None:
-            bar.update(task, completed=fraction, info=info)
+def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
+                       restart: bool) -> dict:
+    """Run the case under a progress bar (unless not ``show``) and return its summary.
 
-        try:
-            summary = run_case(parsed, text, out, progress, restart=restart)
-        except CaseError as exc:
-            _fail(str(exc), 2)
-        except KeyboardInterrupt:
-            bar.stop()
-            _fail(f"interrupted; results up to the last accepted step are in {out}", 130)
+    The runner reports an interrupt (Ctrl-C) inside the step loop as status "interrupted";
+    one outside it (while preparing or writing) arrives here as KeyboardInterrupt and
+    exits with code 130 too. The bar is closed before any message, so messages come below it.
+    """
+    from beamcontact.io.case import CaseError
+    from beamcontact.progress import progress_bar
+    from beamcontact.runner import run_case
+
+    try:
+        with progress_bar(title, enabled=show) as progress:
+            return run_case(parsed, text, out, progress, restart=restart)
+    except CaseError as exc:
+        _fail(str(exc), 2)
+    except KeyboardInterrupt:
+        _interrupted(out)
+
+
+def _interrupted(out: Path) -> None:
+    """Say where the results of an interrupted run are and exit with code 130 (Ctrl-C)."""
+    typer.echo(f"interrupted; results up to the last accepted step are in {out}", err=True)
+    raise typer.Exit(130)
+
+
+def _report_run(summary: dict, out: Path) -> None:
+    """Print the outcome of a run and exit with its code (0 completed, 1 stopped, 130
+    interrupted)."""
+    if summary["status"] == "interrupted":
+        _interrupted(out)
     typer.echo(f"{summary['status']}: {summary['message']}")
     typer.echo(f"steps {summary['steps']}, Newton iterations {summary['newton_iterations']}, "
                f"cut-backs {summary['cutbacks']}, wall time {summary['wall_time_s']:.2f} s "
@@ -232,13 +280,13 @@ def sweep(
 
     Writes DIR/<run>/ (the outputs of `run`), DIR/sweep.csv (parameters, status, first
     impact, first amplitudes, smallest gap, wall time per run) and DIR/plots/ (overlays).
-    Exit code 0 when every run completed, 1 when some failed, 2 for invalid input.
+    Exit code 0 when every run completed, 1 when some failed, 2 for invalid input, 130 when
+    interrupted (Ctrl-C; finished runs are kept and the same command goes on from there).
     """
-    import os
     import tomllib
 
     from beamcontact.io.case import CaseError
-    from beamcontact.sweep import expand, parse_setting, run_sweep
+    from beamcontact.sweep import expand, parse_setting
 
     case = bundled_case() if case is None else case
     parsed, text = _load(case)
@@ -256,17 +304,36 @@ def sweep(
     if out is None:
         _fail("--out DIR is required (the sweep folder; rerunning into it resumes)", 2)
     _check_out_dir(out)
-    points = [p.name for p in parsed.output.points]
     n_workers = workers or max(1, min(os.cpu_count() or 1, len(members)))
+    rows = _sweep_with_progress(members, out, [p.name for p in parsed.output.points],
+                                n_workers, scheduler, show=not quiet)
+    _report_sweep(rows, out)
+
+
+def _sweep_with_progress(members, out: Path, points: list[str], workers: int,
+                         scheduler: str | None, *, show: bool) -> list[dict]:
+    """Run the sweep under its progress display (unless not ``show``); return sweep.csv's rows.
+
+    Exits with code 2 for a member the runner rejects and 130 on Ctrl-C (finished members
+    are kept, and running the same command again goes on from there).
+    """
+    from beamcontact.io.case import CaseError
+    from beamcontact.sweep import run_sweep
+
     try:
-        with _SweepProgress(len(members), quiet) as progress:
-            rows = run_sweep(members, out, points, workers=n_workers, scheduler=scheduler,
+        with _SweepProgress(len(members), show) as progress:
+            return run_sweep(members, out, points, workers=workers, scheduler=scheduler,
                              events=progress.events())
     except CaseError as exc:
         _fail(str(exc), 2)
     except KeyboardInterrupt:
-        _fail(f"interrupted; finished runs are kept in {out} (run the same command to go on)",
-              130)
+        typer.echo(f"interrupted; finished runs are kept in {out} (run the same command to "
+                   "go on)", err=True)
+        raise typer.Exit(130) from None
+
+
+def _report_sweep(rows: list[dict], out: Path) -> None:
+    """Print how many runs completed and each failure; exit with code 1 if any failed."""
     failed = [r for r in rows if r["status"] != "completed"]
     typer.echo(f"{len(rows) - len(failed)} of {len(rows)} run(s) completed; "
                f"table {out / 'sweep.csv'}, plots in {out / 'plots'}")
@@ -276,15 +343,34 @@ def sweep(
         raise typer.Exit(1)
 
 
+def _tail(text: str, width: int) -> str:
+    """``text`` cut to ``width`` characters from the left ("…" + its end): sweep members'
+    names differ mostly in their last parameter, so the end is the part worth keeping."""
+    return text if len(text) <= width else "\u2026" + text[len(text) - width + 1:]
+
+
 class _SweepProgress:
-    """Rich progress across runs: one bar for the sweep, one per run in flight."""
+    """Rich progress across runs: one bar for the sweep, one per run in flight.
 
-    def __init__(self, total: int, quiet: bool):
+    Every column has a fixed width (run names are cut from the left), so each line takes at
+    most 78 columns whatever the terminal width: a line wider than the terminal wraps and is
+    then reprinted at every refresh. Lines are redrawn at most four times a second.
+    """
+
+    NAME_WIDTH, BAR_WIDTH, INFO_WIDTH = 22, 16, 30  # + elapsed 7 + 3 spaces = 78
+
+    def __init__(self, total: int, show: bool = True, console=None):
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+        from rich.table import Column
 
-        self.bar = Progress(TextColumn("{task.description}"), BarColumn(),
-                            TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
-                            disable=quiet)
+        def text(field: str, width: int) -> TextColumn:
+            return TextColumn(field, markup=False, table_column=Column(
+                width=width, no_wrap=True, overflow="ellipsis"))
+
+        self.bar = Progress(text("{task.description}", self.NAME_WIDTH),
+                            BarColumn(bar_width=self.BAR_WIDTH),
+                            text("{task.fields[info]}", self.INFO_WIDTH), TimeElapsedColumn(),
+                            console=console, refresh_per_second=4, disable=not show)
         self.total, self.runs, self.done, self.failed = total, {}, set(), 0
         self.sweep = self.bar.add_task("sweep", total=total, info="")
 
@@ -295,31 +381,37 @@ class _SweepProgress:
     def __exit__(self, *exc):
         return self.bar.__exit__(*exc)
 
+    def started(self, todo: int, done: int) -> None:
+        """Show how many runs were complete before and how many are to run."""
+        self.bar.update(self.sweep, completed=done, info=f"{done} done before, {todo} to run")
+
+    def progress(self, name: str, fraction: float, info: str) -> None:
+        """Move the bar of run ``name`` (adding it on its first event); ``info`` is the
+        runner's ProgressInfo.text() forwarded by the worker."""
+        if name in self.done:  # a late event of a finished run
+            return
+        if name not in self.runs:
+            label = "  " + _tail(name, self.NAME_WIDTH - 2)
+            self.runs[name] = self.bar.add_task(label, total=1.0, info="")
+        self.bar.update(self.runs[name], completed=fraction, info=info)
+
+    def finished(self, member, summary: dict) -> None:
+        """Drop the run's bar, advance the sweep's, and print the run's status once."""
+        self.done.add(member.name)
+        if member.name in self.runs:
+            self.bar.remove_task(self.runs.pop(member.name))
+        self.failed += summary.get("status") != "completed"
+        self.bar.advance(self.sweep)
+        self.bar.update(self.sweep, info=f"{self.failed} failed" if self.failed else "")
+        self.bar.console.print(f"{member.name}: {summary.get('status')}"
+                               f" ({summary.get('wall_time_s') or 0:.1f} s)",
+                               markup=False, highlight=False)
+
     def events(self):
+        """The callbacks that run_sweep calls (SweepEvents) drawing on this display."""
         from beamcontact.sweep import SweepEvents
 
-        def started(todo: int, done: int) -> None:
-            self.bar.update(self.sweep, completed=done,
-                            info=f"{done} done before, {todo} to run")
-
-        def progress(name: str, fraction: float, info: str) -> None:
-            if name in self.done:  # a late event of a finished run
-                return
-            if name not in self.runs:
-                self.runs[name] = self.bar.add_task(f"  {name}", total=1.0, info="")
-            self.bar.update(self.runs[name], completed=fraction, info=info)
-
-        def finished(member, summary: dict) -> None:
-            self.done.add(member.name)
-            if member.name in self.runs:
-                self.bar.remove_task(self.runs.pop(member.name))
-            self.failed += summary.get("status") != "completed"
-            self.bar.advance(self.sweep)
-            self.bar.update(self.sweep, info=f"{self.failed} failed" if self.failed else "")
-            self.bar.console.print(f"{member.name}: {summary.get('status')}"
-                                   f" ({summary.get('wall_time_s') or 0:.1f} s)")
-
-        return SweepEvents(started, progress, finished)
+        return SweepEvents(self.started, self.progress, self.finished)
 
 
 @app.command()

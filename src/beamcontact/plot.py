@@ -1,21 +1,33 @@
-"""Figures: deformed shapes and histories of the output points (matplotlib, Agg)."""
+"""Figures: deformed shapes and histories of the output points.
+
+Built on matplotlib's object-oriented API (``matplotlib.figure.Figure``), never on
+``pyplot``: making and saving a figure here neither selects a backend nor registers the
+figure with pyplot, so plots written by a run leave a notebook's or a script's matplotlib
+state alone. Every ``plot_*`` function saves to ``path`` when it is given and returns the
+figure (which Jupyter displays).
+"""
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+
+def _save(fig: Figure, path: Path | None, dpi: int = 150) -> Figure:
+    if path is not None:
+        fig.savefig(path, dpi=dpi)
+    return fig
 
 
 def plot_shapes(shapes: list[tuple[str, list[np.ndarray]]], reference: list[np.ndarray],
-                path: Path, title: str = "") -> None:
+                path: Path | None = None, title: str = "") -> Figure:
     """Axes of all beams: reference dashed, then one colour per labelled state."""
-    fig, ax = plt.subplots(figsize=(7, 5))
+    fig = Figure(figsize=(7, 5))
+    ax = fig.subplots()
     for k, pts in enumerate(reference):
         ax.plot(pts[:, 0], pts[:, 1], "k--", lw=0.8, label="reference" if k == 0 else None)
-    cmap = plt.get_cmap("viridis")
+    cmap = colormaps["viridis"]
     for i, (label, beams) in enumerate(shapes):
         colour = cmap(i / max(len(shapes) - 1, 1))
         for k, pts in enumerate(beams):
@@ -28,12 +40,12 @@ def plot_shapes(shapes: list[tuple[str, list[np.ndarray]]], reference: list[np.n
     if len(shapes) <= 12:
         ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
+    return _save(fig, path)
 
 
-def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str) -> None:
-    """Labels, grid and legend; save and close."""
+def _finish(fig: Figure, ax, path: Path | None, xlabel: str, ylabel: str,
+            title: str) -> Figure:
+    """Labels, grid and legend; save."""
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title)
@@ -41,36 +53,38 @@ def _finish(fig, ax, path: Path, xlabel: str, ylabel: str, title: str) -> None:
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
+    return _save(fig, path)
 
 
 def plot_point_histories(history: dict[str, np.ndarray], abscissa: str, points: list[str],
-                         path: Path, title: str = "") -> None:
+                         path: Path | None = None, title: str = "") -> Figure:
     """Displacements u_x, u_y of every output point against ``abscissa``."""
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig = Figure(figsize=(7, 4))
+    ax = fig.subplots()
     for name in points:
         for comp, style in (("ux", "--"), ("uy", "-")):
             ax.plot(history[abscissa], history[f"{name}_{comp}"], style, label=f"{name} {comp}")
-    _finish(fig, ax, path, {"t": "t [s]", "load_factor": "load factor"}.get(abscissa, abscissa),
-            "displacement [m]", title)
+    xlabel = {"t": "t [s]", "load_factor": "load factor"}.get(abscissa, abscissa)
+    return _finish(fig, ax, path, xlabel, "displacement [m]", title)
 
 
-def plot_energies(history: dict[str, np.ndarray], path: Path, title: str = "") -> None:
+def plot_energies(history: dict[str, np.ndarray], path: Path | None = None,
+                  title: str = "") -> Figure:
     """Kinetic, strain, gravity, contact and total energy against time, and the energy
     account: E_dissipated (removed by the integrator) and E_set_change (jumps of the
     contact set), so that a change of E_total is seen next to what explains it."""
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig = Figure(figsize=(7, 4))
+    ax = fig.subplots()
     for name in ("E_kin", "E_strain", "E_gravity", "E_ext", "E_contact", "E_total",
                  "E_dissipated", "E_set_change"):
         if name in history and np.any(history[name] != 0.0):
             ax.plot(history["t"], history[name], lw=2.0 if name == "E_total" else 1.2,
                     ls=":" if name in ("E_dissipated", "E_set_change") else "-", label=name)
-    _finish(fig, ax, path, "t [s]", "energy [J]", title)
+    return _finish(fig, ax, path, "t [s]", "energy [J]", title)
 
 
 def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[float],
-                   path: Path, title: str = "") -> None:
+                   path: Path | None = None, title: str = "") -> Figure:
     """A grid of snapshots of all beams' axes (paper Fig. 6); ``radii`` pad the view."""
     n = len(frames)
     cols = min(n, 3)
@@ -78,11 +92,12 @@ def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[flo
     allpts = np.concatenate([p for _, beams in frames for p in beams])
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
     pad = 0.05 * max(hi - lo) + max(radii)
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.6 * rows), squeeze=False)
+    fig = Figure(figsize=(4 * cols, 2.6 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False)
     for ax, (t, beams) in zip(axes.ravel(), frames, strict=False):
         for k, pts in enumerate(beams):
             ax.plot(pts[:, 0], pts[:, 1], lw=2.5, solid_capstyle="round",
-                    color=plt.get_cmap("tab10")(k))
+                    color=colormaps["tab10"](k))
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         ax.set_aspect("equal")
@@ -92,24 +107,26 @@ def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[flo
         ax.axis("off")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return _save(fig, path, dpi=120)
 
 
 def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str = "",
             fps: int = 20) -> None:
     """GIF of the beams' axes over time (Pillow writer, shipped with matplotlib)."""
     from matplotlib.animation import FuncAnimation, PillowWriter
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     allpts = np.concatenate([p for _, beams in frames for p in beams])
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
     pad = 0.05 * max(hi - lo)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    FigureCanvasAgg(fig)  # the writer draws through the figure's canvas
+    ax = fig.subplots()
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=9)
-    lines = [ax.plot([], [], lw=3, color=plt.get_cmap("tab10")(k))[0]
+    lines = [ax.plot([], [], lw=3, color=colormaps["tab10"](k))[0]
              for k in range(len(frames[0][1]))]
     label = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=9, va="top")
 
@@ -122,23 +139,23 @@ def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str
 
     FuncAnimation(fig, draw, frames=len(frames), blit=True).save(
         path, writer=PillowWriter(fps=fps), dpi=80)
-    plt.close(fig)
 
 
-def plot_overlay(curves: list[tuple[str, np.ndarray, np.ndarray]], path: Path, xlabel: str,
-                 ylabel: str, title: str = "") -> None:
+def plot_overlay(curves: list[tuple[str, np.ndarray, np.ndarray]], path: Path | None,
+                 xlabel: str, ylabel: str, title: str = "") -> Figure:
     """Several labelled curves on one axis (paper Figs. 7-10)."""
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig = Figure(figsize=(8, 4))
+    ax = fig.subplots()
     for label, x, y in curves:
         ax.plot(x, y, lw=1.2, label=label)
-    _finish(fig, ax, path, xlabel, ylabel, title)
+    return _finish(fig, ax, path, xlabel, ylabel, title)
 
 
-def plot_run_overlay(runs: list[tuple[str, dict[str, np.ndarray]]], column: str, path: Path,
-                     title: str = "") -> None:
+def plot_run_overlay(runs: list[tuple[str, dict[str, np.ndarray]]], column: str,
+                     path: Path | None, title: str = "") -> Figure:
     """One history column of several labelled runs against time or load factor."""
     abscissa = "t" if "t" in runs[0][1] else "load_factor"
     ylabel = "smallest gap [m]" if column == "min_gap" else \
         f"{column.rsplit('_', 1)[0]} {column.rsplit('_', 1)[-1]} [m]"
-    plot_overlay([(label, h[abscissa], h[column]) for label, h in runs], path,
+    return plot_overlay([(label, h[abscissa], h[column]) for label, h in runs], path,
                  "t [s]" if abscissa == "t" else "load factor", ylabel, title)

@@ -1,27 +1,23 @@
-"""Run a validated case into an output folder (DESIGN.md Sec. 4 results contract).
+"""Run a validated case (DESIGN.md Sec. 4 results contract).
 
-Writes history.csv, summary.json, results.h5, vtk/*.vtu + beams.pvd and plots/*.png.
-Results are written step by step; on failure or interruption everything accepted so far
-is kept and summary.json says why the run stopped. Dynamic runs can be continued with
-``restart=True`` from the last state in results.h5.
+:func:`execute` runs statics or dynamics and returns the summary and the in-memory
+:class:`~beamcontact.record.RunRecord` (history and snapshots); with an output folder it
+writes history.csv, summary.json, results.h5, vtk/*.vtu + beams.pvd and plots/*.png as the
+run goes. On failure or interruption (Ctrl-C) everything accepted so far is kept and the
+summary says why the run stopped, with every counter known at that point. Dynamic runs
+can be continued with ``restart=True`` from the last state in results.h5.
 """
 
 import time
 import tomllib
-from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 
 from beamcontact import __version__, require_x64
-from beamcontact.assembly.build import (
-    Discretization,
-    build_model,
-    discretize,
-    point_sampler,
-    polyline_matrix,
-)
+from beamcontact.assembly.build import Discretization, build_model, discretize
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
 from beamcontact.contact.overlap import describe, initial_overlaps
 from beamcontact.contact.problem import build_contact
@@ -36,143 +32,47 @@ from beamcontact.dynamics.driver import (
     uniform_velocities,
 )
 from beamcontact.dynamics.hht import DynState, initial_state
-from beamcontact.io.case import Case, CaseError, at_fraction, parse_case
-from beamcontact.io.results import (
-    HistoryWriter,
-    StateWriter,
-    read_history,
-    read_last_state,
-    write_summary,
-)
-from beamcontact.io.vtk import VtkSeries
-from beamcontact.plot import (
-    animate,
-    plot_energies,
-    plot_point_histories,
-    plot_shapes,
-    plot_snapshots,
-)
+from beamcontact.io.case import Case, CaseError, parse_case
+from beamcontact.io.results import read_last_state, write_summary
+from beamcontact.progress import Progress, ProgressInfo
+from beamcontact.record import RunRecord
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import StaticStep, solve_static
-
-Progress = Callable[[float, str], None]
+from beamcontact.summary import contact_summary, effective_settings
 
 ENERGY_COLUMNS = ["E_strain", "E_gravity", "E_ext", "E_contact", "E_total", "min_gap"]
 DYNAMIC_COLUMNS = ["E_kin", *ENERGY_COLUMNS, "E_dissipated", "E_set_change", "p_x", "p_y",
                    "error"]  # then newton_iters, cutbacks, dt
 
 
-class OutputPoints:
-    """Evaluates the followed points from the global control points."""
+@dataclass
+class _Tally:
+    """Counters of the accepted steps, kept by the runner so that an interrupted run
+    still reports them (the solvers' own result never comes back then)."""
 
-    def __init__(self, case: Case, disc: Discretization, x_ref: np.ndarray):
-        self.names = [p.name for p in case.output.points]
-        self._samplers = [point_sampler(disc, p.beam, at_fraction(p.at))
-                          for p in case.output.points]
-        self._ref = [R @ x_ref[idx] for idx, R in self._samplers]
+    start: float = field(default_factory=time.perf_counter)
+    steps: int = 0
+    iterations: int = 0
+    cutbacks: int = 0
+    reached: float = 0.0
+    first_step_s: float | None = None  # compilation and the first step
 
-    def columns(self) -> list[str]:
-        """history.csv columns of the points."""
-        return [f"{n}_{c}" for n in self.names for c in ("x", "y", "ux", "uy")]
+    def accept(self, step: int, reached: float, iterations: int, cutbacks: int) -> None:
+        if self.first_step_s is None:
+            self.first_step_s = time.perf_counter() - self.start
+        self.steps, self.reached, self.cutbacks = step, reached, cutbacks
+        self.iterations += iterations
 
-    def values(self, x: np.ndarray) -> dict:
-        """Positions and displacements of every point for control points x."""
-        row = {}
-        for n, (idx, R), ref in zip(self.names, self._samplers, self._ref, strict=True):
-            p = R @ x[idx]
-            row.update({f"{n}_x": p[0], f"{n}_y": p[1], f"{n}_ux": p[0] - ref[0],
-                        f"{n}_uy": p[1] - ref[1]})
-        return row
-
-
-class _Outputs:
-    """The writers of one run and the shape plots, shared by statics and dynamics."""
-
-    def __init__(self, case: Case, case_text: str, disc: Discretization, model: Model,
-                 out_dir: Path, abscissa: str, extra_columns: list[str],
-                 resume: tuple[int, float] | None = None):
-        self.case, self.disc, self.out_dir = case, disc, out_dir
-        self.x_ref = np.asarray(model.x_ref)
-        self.points = OutputPoints(case, disc, self.x_ref)
-        self.abscissa = abscissa
-        self.columns = ["step", abscissa, *self.points.columns(), *extra_columns,
-                        "newton_iters", "cutbacks"] + (["dt"] if abscissa == "t" else [])
-        out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / "plots").mkdir(exist_ok=True)
-        step = None if resume is None else resume[0]
-        self.history = HistoryWriter(out_dir / "history.csv", self.columns, step)
-        self.states = StateWriter(out_dir / "results.h5", case_text, disc.beams, model.n_dof,
-                                  abscissa, step)
-        self.maps = [(polyline_matrix(b, case.output.samples_per_element),
-                      slice(b.offset, b.offset + b.n_cp)) for b in disc.beams]
-        self.vtk = VtkSeries(out_dir, [m for m, _ in self.maps],
-                             [b.section.half_depth for b in disc.beams], self.x_ref,
-                             [b.offset for b in disc.beams], [b.n_cp for b in disc.beams],
-                             None if resume is None else resume[1])
-
-    def x(self, u) -> np.ndarray:
-        """Control points for the flat displacement u."""
-        return self.x_ref + np.asarray(u).reshape(-1, 2)
-
-    def row(self, step: int, parameter: float, u, values: dict, iterations: int,
-            cutbacks: int, **extra) -> None:
-        """Append one history row."""
-        self.history.write({"step": step, self.abscissa: parameter,
-                            **self.points.values(self.x(u)), **values,
-                            "newton_iters": iterations, "cutbacks": cutbacks, **extra})
-
-    def close(self) -> None:
-        """Close the files."""
-        self.history.close()
-        self.states.close()
-
-    def axes(self, u) -> list[np.ndarray]:
-        """Polylines of every beam axis."""
-        x = self.x(u)
-        return [m @ x[s] for m, s in self.maps]
-
-    def plots(self) -> None:
-        """shapes.png from the saved states, points.png; dynamics also energies.png,
-        snapshots.png (a grid of instants) and animation.gif (every VTU instant)."""
-        import h5py
-
-        with h5py.File(self.out_dir / "results.h5", "r") as f:
-            params = f["states/parameter"][:]
-            n = len(params)
-            if n == 0:
-                return
-            picks = np.unique(np.linspace(0, n - 1, min(n, 9)).astype(int))
-            shapes = [(params[i], self.axes(f["states/u"][i])) for i in picks]
-            if self.abscissa == "t":
-                interval = self.case.output.vtk_interval or self.case.analysis.t_end / 100
-                marks = np.arange(0.0, params[-1] + 1e-9, interval)
-                frames_idx = np.unique(np.searchsorted(params, marks - 1e-9).clip(0, n - 1))
-                if len(frames_idx) > 300:
-                    frames_idx = frames_idx[:: int(np.ceil(len(frames_idx) / 300))]
-                frames = [(params[i], self.axes(f["states/u"][i])) for i in frames_idx]
-        plot_shapes([(f"{self.abscissa} {p:.3g}", a) for p, a in shapes],
-                    self.axes(np.zeros(self.x_ref.size)),
-                    self.out_dir / "plots" / "shapes.png", self.case.title)
-        if self.abscissa == "t":
-            radii = [b.section.half_depth for b in self.disc.beams]
-            plot_snapshots(shapes, radii, self.out_dir / "plots" / "snapshots.png",
-                           self.case.title)
-            if len(frames) > 1:
-                animate(frames, self.out_dir / "animation.gif", self.case.title)
-        history = read_history(self.out_dir / "history.csv")
-        if self.points.names:
-            plot_point_histories(history, self.abscissa, self.points.names,
-                                 self.out_dir / "plots" / "points.png", self.case.title)
-        if self.abscissa == "t":
-            plot_energies(history, self.out_dir / "plots" / "energies.png", self.case.title)
-
-    def extremes(self) -> dict:
-        """Smallest, largest and final displacement of every output point."""
-        h = read_history(self.out_dir / "history.csv")
-        return {f"{n}_{c}": {"min": float(h[f"{n}_{c}"].min()),
-                             "max": float(h[f"{n}_{c}"].max()),
-                             "final": float(h[f"{n}_{c}"][-1])}
-                for n in self.points.names for c in ("ux", "uy")}
+    def interrupted(self, parameter: str) -> dict:
+        """The counters as the solvers' summary fields of an interrupted run."""
+        where = f"t = {self.reached:.6g} s" if parameter == "t" else \
+            f"load factor {self.reached:.6g}"
+        return {"status": "interrupted",
+                "message": f"interrupted by the user at {where} after {self.steps} steps; "
+                           f"every accepted step is kept",
+                "steps": self.steps, "newton_iterations": self.iterations,
+                "cutbacks": self.cutbacks, "solve_time_s": time.perf_counter() - self.start,
+                "compile_time_s": self.first_step_s or 0.0}
 
 
 def _discretize(case: Case) -> Discretization:
@@ -182,9 +82,19 @@ def _discretize(case: Case) -> Discretization:
         raise CaseError(f"beams: {exc}") from None
 
 
-def run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | None = None,
-             restart: bool = False) -> dict:
-    """Run ``case`` and write its results into ``out_dir``; returns the summary.
+def run_case(case: Case, case_text: str, out_dir: Path | None,
+             progress: Progress | None = None, restart: bool = False) -> dict:
+    """Run ``case``, write its results into ``out_dir`` (if given); returns the summary."""
+    return execute(case, case_text, out_dir, progress, restart)[0]
+
+
+def execute(case: Case, case_text: str, out_dir: Path | None,
+            progress: Progress | None = None,
+            restart: bool = False) -> tuple[dict, RunRecord]:
+    """Run ``case``; returns the summary and the run's in-memory record.
+
+    ``case_text`` is the TOML stored in results.h5 (the case file's text, comments
+    included); ``progress`` is called after every accepted step.
 
     BLAS/LAPACK (OpenBLAS, used by JAX's CPU linear solves) runs on one thread during the
     run: the summation order of a threaded LU depends on the thread count, and in the
@@ -195,14 +105,16 @@ def run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | Non
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
-        return _run_case(case, case_text, out_dir, progress, restart)
+        return _execute(case, case_text, out_dir, progress, restart)
 
 
-def _run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | None,
-              restart: bool) -> dict:
+def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progress | None,
+             restart: bool) -> tuple[dict, RunRecord]:
     require_x64()
     if restart and case.analysis.kind != "dynamic":
         raise CaseError("--restart continues dynamic runs only (analysis.kind = \"dynamic\")")
+    if restart and out_dir is None:
+        raise CaseError("a restart needs the output folder of the run to continue")
     wall0 = time.perf_counter()
     disc = _discretize(case)
     model, disc = build_model(case, disc)
@@ -210,7 +122,8 @@ def _run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | No
     contact = build_contact(case, disc)
     warnings = [] if restart else _check_initial_overlap(case, model, contact)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
-    summary = run(case, case_text, disc, model, out_dir, opts, progress, restart, contact)
+    summary, record = run(case, case_text, disc, model, out_dir, opts, progress, restart,
+                          contact)
     if contact is not None and contact.law == "cg" and summary.get("min_gap") is not None:
         res = contact_resolution(contact.elements, contact.params, summary["min_gap"])
         summary["cg_resolution"] = res.as_dict()
@@ -222,8 +135,9 @@ def _run_case(case: Case, case_text: str, out_dir: Path, progress: Progress | No
                     "wall_time_s": time.perf_counter() - wall0, "n_dof": model.n_dof,
                     "n_elements": sum(b.mesh.n_elements for b in disc.beams),
                     "beamcontact_version": __version__})
-    write_summary(out_dir / "summary.json", summary)
-    return summary
+    if out_dir is not None:
+        write_summary(out_dir / "summary.json", summary)
+    return summary, record
 
 
 # an initial interpenetration deeper than this fraction of the smallest radius is an input
@@ -248,40 +162,37 @@ def _check_initial_overlap(case: Case, model: Model, contact) -> list[str]:
 
 
 def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart,
-                contact) -> dict:
-    out = _Outputs(case, case_text, disc, model, out_dir, "load_factor", ENERGY_COLUMNS)
+                contact) -> tuple[dict, RunRecord]:
+    rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "load_factor",
+                    ENERGY_COLUMNS)
+    tally = _Tally()
 
     def on_step(s: StaticStep) -> None:
         e = s.energies
         e = {**e, "E_total": e["E_strain"] + e["E_gravity"] + e["E_ext"] + e["E_contact"]}
-        out.row(s.step, s.load_factor, s.u, e, s.iterations, s.cutbacks)
-        out.states.write(s.step, s.load_factor, s.u)
+        rec.row(s.step, s.load_factor, s.u, e, s.iterations, s.cutbacks)
+        rec.state(s.step, s.load_factor, s.u)
         if s.step % case.output.vtk_every == 0 or s.load_factor >= 1.0 - 1e-12:
-            out.vtk.write(s.load_factor, out.x(s.u))
+            rec.snapshot(s.load_factor, s.u)
+        if s.step > 0:
+            tally.accept(s.step, s.load_factor, s.iterations, s.cutbacks)
         if progress is not None:
-            progress(s.load_factor, f"load factor {s.load_factor:.3f}")
+            progress(ProgressInfo(s.load_factor, "load_factor", s.load_factor, s.step,
+                                  None, s.iterations))
 
     try:
         result = solve_static(model, case.analysis.load_steps, opts, disc.length_scale,
                               case.solver.max_cutbacks, on_step, contact,
                               case.contact.capacity, [b.name for b in disc.beams])
+        summary = {"status": result.status, "message": result.message,
+                   "steps": result.steps, "newton_iterations": result.iterations,
+                   "cutbacks": result.cutbacks, "final_load_factor": result.load_factor,
+                   "solve_time_s": result.wall_time, "compile_time_s": result.compile_time}
     except KeyboardInterrupt:
-        _interrupted(out, out_dir)
-        raise
-    out.close()
-    out.plots()
-    return {"status": result.status, "message": result.message, "steps": result.steps,
-            "newton_iterations": result.iterations, "cutbacks": result.cutbacks,
-            "final_load_factor": result.load_factor, "solve_time_s": result.wall_time,
-            "compile_time_s": result.compile_time, "extremes": out.extremes()}
-
-
-def _interrupted(out: _Outputs, out_dir: Path) -> None:
-    out.close()
-    write_summary(out_dir / "summary.json", {
-        "status": "interrupted",
-        "message": "interrupted by the user; every accepted step is in history.csv and "
-                   "results.h5"})
+        summary = {**tally.interrupted("load_factor"), "final_load_factor": tally.reached}
+    rec.close()
+    rec.plots()
+    return {**summary, "extremes": rec.extremes()}, rec
 
 
 def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, dict]:
@@ -350,7 +261,7 @@ def _same_model(stored: Case, case: Case) -> None:
 
 
 def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
-                 contact) -> dict:
+                 contact) -> tuple[dict, RunRecord]:
     an = case.analysis
     interval = case.output.vtk_interval or an.t_end / 100.0
     if restart:
@@ -362,159 +273,92 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
         if float(state.t) >= an.t_end - 1e-12 * an.t_end:
             raise CaseError(f"--restart: the run in {out_dir} already reached t = "
                             f"{float(state.t):.6g} s >= analysis.t_end")
-        out = _Outputs(case, case_text, disc, model, out_dir, "t", DYNAMIC_COLUMNS,
-                       resume=(step0, float(state.t)))
+        rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
+                        DYNAMIC_COLUMNS, resume=(step0, float(state.t)))
     else:
-        u0 = jnp.zeros(model.n_dof)
-        v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
-        cs0 = None if contact is None else contact.grown_set(
-            model.x_ref, 0.0, case.contact.capacity)[0]
-        state = initial_state(u0, v0, model, initial_load_state(model),
-                              None if contact is None else contact.elements, cs0,
-                              "none" if contact is None else contact.law)
+        state, cs0 = _initial_dynamic_state(case, disc, model, contact)
         step0, dt_start, before = 0, an.dt, {"iterations": 0, "cutbacks": 0}
-        account = None
-        out = _Outputs(case, case_text, disc, model, out_dir, "t", DYNAMIC_COLUMNS)
+        rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
+                        DYNAMIC_COLUMNS)
     next_snapshot = [np.floor(float(state.t) / interval + 1e-9) * interval + interval]
-    totals = dict(before)
+    tally = _Tally(steps=step0, iterations=before["iterations"], cutbacks=before["cutbacks"],
+                   reached=float(state.t))
 
     def save(step: int, t: float, st: DynState, h: float, iterations: int, cutbacks: int,
              diag: dict, dt_next: float) -> None:
-        out.row(step, t, st.u, diag, iterations, cutbacks, dt=h)
-        out.states.write(step, t, st.u, v=st.v, a=st.a, f_pot=st.f_pot,
-                         load_theta=st.load_state.theta, load_tangent=st.load_state.tangent,
-                         dt=h, dt_next=dt_next, iterations_total=totals["iterations"],
-                         cutbacks_total=cutbacks, energy_account=_account_record(diag))
+        rec.row(step, t, st.u, diag, iterations, cutbacks, dt=h)
+        rec.state(step, t, st.u, v=st.v, a=st.a, f_pot=st.f_pot,
+                  load_theta=st.load_state.theta, load_tangent=st.load_state.tangent,
+                  dt=h, dt_next=dt_next, iterations_total=tally.iterations,
+                  cutbacks_total=cutbacks, energy_account=_account_record(diag))
 
     if not restart:
         diag0 = {**host_diagnostics(state, model, contact, cs0), "error": 0.0,
                  "E_dissipated": 0.0, "E_set_change": 0.0}
         save(0, 0.0, state, 0.0, 0, 0, diag0, an.dt)
-        out.vtk.write(0.0, out.x(state.u))
+        rec.snapshot(0.0, state.u)
         account = _account_from_record(_account_record(diag0))
 
     def on_step(s: DynamicStep) -> None:
-        totals["iterations"] += s.iterations
         cutbacks = before["cutbacks"] + s.cutbacks
+        tally.accept(s.step, s.t, s.iterations, cutbacks)
         save(s.step, s.t, s.state, s.dt, s.iterations, cutbacks, s.diagnostics, s.dt_next)
         if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
-            out.vtk.write(s.t, out.x(s.state.u))
+            rec.snapshot(s.t, s.state.u)
             next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval
         if progress is not None:
-            progress(s.t / an.t_end, f"t = {s.t:.4g} s, dt = {s.dt:.3g} s")
+            progress(ProgressInfo(s.t / an.t_end, "t", s.t, s.step, s.dt, s.iterations))
 
     try:
         result = solve_dynamic(model, state, an.t_end, an.alpha, opts, disc.length_scale,
                                step_control(case), dt_start=dt_start, step0=step0,
                                on_step=on_step, contact=contact,
                                capacity=case.contact.capacity, account=account)
+        summary = {"status": result.status, "message": result.message,
+                   "steps": step0 + result.steps,
+                   "newton_iterations": before["iterations"] + result.iterations,
+                   "cutbacks": before["cutbacks"] + result.cutbacks,
+                   "rejections": result.rejections, "t_final": result.t,
+                   "solve_time_s": result.wall_time, "compile_time_s": result.compile_time}
     except KeyboardInterrupt:
-        _interrupted(out, out_dir)
-        raise
-    out.close()
-    out.plots()
-    h = read_history(out_dir / "history.csv")
-    steps = step0 + result.steps
-    iterations = before["iterations"] + result.iterations
-    return {"status": result.status, "message": result.message, "steps": steps,
-            "newton_iterations": iterations, "cutbacks": before["cutbacks"] + result.cutbacks,
-            "rejections": result.rejections,
-            "restarted_from_step": step0 if restart else None,
-            "t_final": result.t, "mean_iterations_per_step": iterations / max(steps, 1),
-            "solve_time_s": result.wall_time, "compile_time_s": result.compile_time,
-            "min_step_s": float(h["dt"][1:].min()) if len(h["dt"]) > 1 else None,
-            "max_step_s": float(h["dt"][1:].max()) if len(h["dt"]) > 1 else None,
-            "energy": {"E_total_initial": float(h["E_total"][0]),
-                       "E_total_final": float(h["E_total"][-1]),
-                       "E_kin_max": float(h["E_kin"].max()),
-                       "E_dissipated": float(h["E_dissipated"][-1]),
-                       "E_set_change": float(h["E_set_change"][-1]),
-                       "balance_residual": float(h["E_total"][-1] + h["E_dissipated"][-1]
-                                                 - h["E_set_change"][-1] - h["E_total"][0])},
-            "extremes": out.extremes(), **contact_summary(h, out.points.names, contact)}
+        summary = {**tally.interrupted("t"), "rejections": None, "t_final": tally.reached}
+    rec.close()
+    rec.plots()
+    summary["restarted_from_step"] = step0 if restart else None
+    summary["mean_iterations_per_step"] = summary["newton_iterations"] / max(summary["steps"], 1)
+    return {**summary, **_dynamic_results(rec, contact)}, rec
 
 
-def effective_settings(case: Case) -> dict:
-    """Every [solver] value, defaults included, and for dynamics the step bounds and
-    alpha actually used: enough to reproduce the run."""
-    settings = case.solver.model_dump()
-    an = case.analysis
-    if an.kind == "dynamic":
-        settings.update(dt=an.dt, dt_min=an.smallest_step, alpha=an.alpha)
-    else:
-        settings.update(load_steps=an.load_steps)
-    return settings
+def _initial_dynamic_state(case: Case, disc: Discretization, model: Model, contact):
+    """The state at t = 0 (consistent accelerations) and its contact set."""
+    u0 = jnp.zeros(model.n_dof)
+    v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
+    cs0 = None if contact is None else contact.grown_set(
+        model.x_ref, 0.0, case.contact.capacity)[0]
+    state = initial_state(u0, v0, model, initial_load_state(model),
+                          None if contact is None else contact.elements, cs0,
+                          "none" if contact is None else contact.law)
+    return state, cs0
+
+
+def _dynamic_results(rec: RunRecord, contact) -> dict:
+    """Summary fields computed from the history of a dynamic run."""
+    h = rec.history()
+    steps = h["dt"][1:]
+    return {
+        "min_step_s": float(steps.min()) if len(steps) else None,
+        "max_step_s": float(steps.max()) if len(steps) else None,
+        "energy": {"E_total_initial": float(h["E_total"][0]),
+                   "E_total_final": float(h["E_total"][-1]),
+                   "E_kin_max": float(h["E_kin"].max()),
+                   "E_dissipated": float(h["E_dissipated"][-1]),
+                   "E_set_change": float(h["E_set_change"][-1]),
+                   "balance_residual": float(h["E_total"][-1] + h["E_dissipated"][-1]
+                                             - h["E_set_change"][-1] - h["E_total"][0])},
+        "extremes": rec.extremes(), **contact_summary(h, rec.points.names, contact)}
 
 
 def step_control(case: Case) -> StepControl:
     """The step controller's settings of a validated dynamic case."""
     an, so = case.analysis, case.solver
     return StepControl(an.dt, an.smallest_step, so.error_tol, so.energy_tol, so.max_cutbacks)
-
-
-def contact_summary(h: dict, points: list[str], contact) -> dict:
-    """First impact, first amplitude of each output point after it, gap extremes.
-
-    The first impact is the first accepted step whose smallest gap is below 1 % of the
-    smallest contact radius; the first amplitude of a point is the extreme u_y of its
-    first excursion after that time (until u_y changes sign, or the end of the run).
-    """
-    if contact is None:
-        return {}
-    gap = h["min_gap"]
-    r_min = float(np.min(np.asarray(contact.elements.radius)))
-    hit = np.where(gap <= 0.01 * r_min)[0]
-    out = {"min_gap": float(np.nanmin(gap)),
-           "max_penetration": float(max(0.0, -np.nanmin(gap))),
-           "first_impact_time": float(h["t"][hit[0]]) if hit.size else None,
-           "first_amplitude": {},
-           "impacts": contact_episodes(h)}
-    if hit.size:
-        for name in points:
-            out["first_amplitude"][name] = first_excursion_extreme(h["t"][hit[0]:],
-                                                                   h[f"{name}_uy"][hit[0]:])
-    return out
-
-
-def contact_episodes(h: dict, level: float = 1e-4) -> list[dict]:
-    """Every contact of the run: it starts at the first step whose contact energy exceeds
-    ``level`` times the largest E_kin + E_strain + |E_contact| of the run, and ends at the
-    first step after it where it falls below a quarter of that (the hysteresis keeps a
-    grazing contact from counting as many). For each: start and end time (None if still
-    in contact at the end), the smallest gap, and the changes of the total energy, of
-    E_dissipated and of E_set_change from the step before it starts to the step where it
-    ends (E_change = E_set_change - E_dissipated)."""
-    e_con, t = np.abs(h["E_contact"]), h["t"]
-    threshold = level * float(np.max(h["E_kin"] + h["E_strain"] + e_con))
-    episodes, k, n = [], 0, len(t)
-    while k < n:
-        if not e_con[k] > threshold:
-            k += 1
-            continue
-        begin = k
-        while k < n and not e_con[k] < 0.25 * threshold:
-            k += 1
-        before, after = max(begin - 1, 0), min(k, n - 1)
-        episodes.append({
-            "start": float(t[begin]), "end": float(t[k]) if k < n else None,
-            "min_gap": float(np.min(h["min_gap"][begin:after + 1])),
-            "E_total_before": float(h["E_total"][before]),
-            "E_change": float(h["E_total"][after] - h["E_total"][before]),
-            "E_dissipated": float(h["E_dissipated"][after] - h["E_dissipated"][before]),
-            "E_set_change": float(h["E_set_change"][after] - h["E_set_change"][before])})
-    return episodes
-
-
-def first_excursion_extreme(t: np.ndarray, uy: np.ndarray, level: float = 0.01) -> dict:
-    """Extreme of the first excursion of ``uy``: it starts where |uy| first exceeds
-    ``level`` times max |uy| and ends where uy passes that level with the opposite sign
-    (or at the end), so that round-off wiggles about zero do not count as excursions."""
-    tau = level * float(np.max(np.abs(uy)))
-    if tau == 0.0:
-        return {"uy": 0.0, "t": float(t[0])}
-    k0 = int(np.argmax(np.abs(uy) > tau))
-    sign = np.sign(uy[k0])
-    back = np.where(sign * uy[k0:] < -tau)[0]
-    end = k0 + (int(back[0]) if back.size else len(uy) - k0)
-    k = k0 + int(np.argmax(sign * uy[k0:end]))
-    return {"uy": float(uy[k]), "t": float(t[k])}

@@ -17,9 +17,11 @@ status, key results); ``DIR/plots/`` overlays the output points of all members.
 Execution: a local Dask cluster of worker processes started and stopped here, or an existing
 scheduler (``--scheduler tcp://HOST:PORT``), whose workers must see DIR (a shared file
 system) and have beamcontact installed. A member that fails or whose worker dies is recorded
-and never stops the others.
+and never stops the others. Progress: each worker forwards its run's ProgressInfo (fraction
+and text) as a Dask worker event at most twice a second; SweepEvents hands them to the client.
 """
 
+import contextlib
 import copy
 import itertools
 import logging
@@ -39,6 +41,7 @@ import tomli_w
 
 from beamcontact.io.case import CaseError, parse_case
 from beamcontact.io.results import read_history, read_summary, write_summary, write_table
+from beamcontact.progress import Progress, ProgressInfo
 
 PROGRESS_TOPIC = "beamcontact-sweep-progress"
 _COMPLETED = "completed"
@@ -209,9 +212,10 @@ def completed_summary(member: Member, run_dir: Path) -> dict | None:
     return summary if summary and summary.get("status") == _COMPLETED else None
 
 
-def run_member(member: Member, run_dir: str | Path,
-               report: Callable[[float, str], None] | None = None) -> dict:
+def run_member(member: Member, run_dir: str | Path, report: Progress | None = None) -> dict:
     """Run one member into ``run_dir`` (replacing what is there) and return its summary.
+
+    ``report`` is the runner's progress callback (a ProgressInfo after every accepted step).
 
     Never raises for a failing run: an exception becomes status "error" with its message
     in the summary (and in ``run_dir/summary.json``), so a sweep goes on.
@@ -233,27 +237,33 @@ def run_member(member: Member, run_dir: str | Path,
     except Exception as exc:  # noqa: BLE001 - a failing member is recorded, not fatal
         summary = {"status": "error", "message": f"{type(exc).__name__}: {exc}",
                    "traceback": traceback.format_exc()}
-        try:
+        with contextlib.suppress(OSError):  # the folder itself may be the problem
             write_summary(run_dir / "summary.json", summary)
-        except OSError:
-            pass
         return summary
 
 
 def _run_on_worker(member: Member, run_dir: str) -> dict:
-    """run_member on a Dask worker, reporting progress as worker events (twice a second)."""
+    """run_member on a Dask worker, reporting progress as worker events (twice a second).
+
+    The runner hands a ProgressInfo to ``report``; the event carries only its fraction and
+    its text (``{"run", "fraction", "info"}``, JSON-simple, so that any scheduler passes it on
+    and the client needs no beamcontact class to read it).
+    """
     from distributed import get_worker
 
     worker, last = get_worker(), [-1.0]
 
-    def report(fraction: float, info: str) -> None:
+    def send(fraction: float, info: str) -> None:
+        worker.log_event(PROGRESS_TOPIC, {"run": member.name, "fraction": float(fraction),
+                                          "info": info})
+
+    def report(info: ProgressInfo) -> None:
         now = time.monotonic()
         if now - last[0] >= 0.5:
             last[0] = now
-            worker.log_event(PROGRESS_TOPIC, {"run": member.name, "fraction": fraction,
-                                              "info": info})
+            send(info.fraction, info.text())
 
-    report(0.0, "starting")
+    send(0.0, "starting")
     return run_member(member, run_dir, report)
 
 
@@ -301,7 +311,12 @@ def member_row(member: Member, summary: dict | None, point_names: list[str]) -> 
 
 @dataclass(frozen=True)
 class SweepEvents:
-    """Callbacks of a running sweep (the CLI draws progress with them)."""
+    """Callbacks of a running sweep (the CLI draws progress with them).
+
+    ``started(todo, done)`` once with the numbers of runs to do and done before;
+    ``progress(name, fraction, info)`` as a run advances (``info``: ProgressInfo.text() of
+    its last reported step, or "starting"); ``finished(member, summary)`` when a run ends.
+    """
 
     started: Callable[[int, int], None] = lambda todo, done: None
     progress: Callable[[str, float, str], None] = lambda name, fraction, info: None

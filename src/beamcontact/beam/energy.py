@@ -30,7 +30,8 @@ def axis_metric(x_e, dR, ddR):
 
     Args:
         x_e: control points of the element, shape (p+1, 2).
-        dR, ddR: basis derivatives at the Gauss points, shape (n_qp, p+1).
+        dR: first derivatives of the basis at the Gauss points, shape (n_qp, p+1).
+        ddR: second derivatives of the basis at the Gauss points, shape (n_qp, p+1).
     """
     return metric_and_curvature(dR @ x_e, ddR @ x_e)
 
@@ -47,9 +48,12 @@ def fibre_strain_energy_density(g, K, g_ref, K_ref, eta, w_eta, E):
     """Strain energy per unit parameter xi at each Gauss point (eqs. 23-26, 30).
 
     Args:
-        g, K: current metric and curvature, shape (n_qp,).
-        g_ref, K_ref: reference metric and curvature, shape (n_qp,).
-        eta, w_eta: section quadrature, shape (n_eta,).
+        g: current metric, shape (n_qp,).
+        K: current curvature, shape (n_qp,).
+        g_ref: reference metric, shape (n_qp,).
+        K_ref: reference curvature, shape (n_qp,).
+        eta: section quadrature points (fibre coordinates), shape (n_eta,).
+        w_eta: section quadrature weights, shape (n_eta,).
         E: Young's modulus.
     """
     g0_ref = 1.0 - eta[None, :] * K_ref[:, None]

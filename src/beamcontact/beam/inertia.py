@@ -43,10 +43,15 @@ def element_inertia_force(x_e, v_e, a_e, R, dR, wq, g_ref, rho_area, rho_inertia
     """Generalised inertia force of one element, shape (n_loc, 2).
 
     Args:
-        x_e, v_e, a_e: positions, velocities, accelerations of the control points (n_loc, 2).
-        R, dR: basis and first derivative at the Gauss points, (n_qp, n_loc).
-        wq: Gauss weights times d xi / d xi_hat; g_ref: reference metric (n_qp,).
-        rho_area, rho_inertia: rho A and rho I.
+        x_e: positions of the control points (n_loc, 2).
+        v_e: velocities of the control points (n_loc, 2).
+        a_e: accelerations of the control points (n_loc, 2).
+        R: basis at the Gauss points, (n_qp, n_loc).
+        dR: first derivative of the basis at the Gauss points, (n_qp, n_loc).
+        wq: Gauss weights times d xi / d xi_hat.
+        g_ref: reference metric (n_qp,).
+        rho_area: rho A.
+        rho_inertia: rho I.
     """
     ds = wq * jnp.sqrt(g_ref)  # reference arc length weights
     trans = rho_area * jnp.einsum("q,qk,qd->kd", ds, R, R @ a_e)

@@ -22,9 +22,12 @@ def point_load_potential(x_e, R, dR, force, moment, theta_n, t_n):
 
     Args:
         x_e: control points carrying the load point, shape (n_loc, 2).
-        R, dR: basis and first derivative at the load point, shape (n_loc,).
-        force: dead force (2,); moment: scalar (counter-clockwise positive).
-        theta_n, t_n: rotation and tangent at the last converged state.
+        R: basis at the load point, shape (n_loc,).
+        dR: first derivative of the basis at the load point, shape (n_loc,).
+        force: dead force (2,).
+        moment: scalar (counter-clockwise positive).
+        theta_n: rotation at the last converged state.
+        t_n: tangent at the last converged state.
     """
     r = R @ x_e
     t = dR @ x_e

@@ -2,13 +2,13 @@
 
 A NURBS element with positive weights lies in the convex hull of its control points, so
 the box of its control points contains the element's axis; boxes grown by a margin m
-overlap for every pair of axes closer than 2 m. Element pairs of different beams whose grown boxes overlap are the
-candidates. The list has a fixed capacity (one compile per shape); ``count`` larger than
-the capacity is the overflow flag that makes the host reallocate and redo the step.
+overlap for every pair of axes closer than 2 m. Element pairs of different beams whose
+grown boxes overlap are the candidates. The list has a fixed capacity (one compile per
+shape); ``count`` larger than the capacity is the overflow flag that makes the host
+reallocate and redo the step.
 Padding entries point at the sentinel element index E.
 """
 
-import jax
 import jax.numpy as jnp
 
 from beamcontact.contact.points import ContactElements

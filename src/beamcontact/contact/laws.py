@@ -51,7 +51,9 @@ def cg_pair_energy(d, R12, amplitude, params):
     """Coarse-grained energy density of one pair of sections (eq. 9 integrand).
 
     Args:
-        d: centre-line distance; R12: R1 + R2; amplitude: :func:`cg_amplitude`.
+        d: centre-line distance.
+        R12: R1 + R2.
+        amplitude: :func:`cg_amplitude`.
     """
     phi = cg_potential(d - R12, amplitude, params[EXPONENT], params[Q_REG])
     return jnp.where(d < params[CUTOFF], phi, 0.0)

@@ -149,7 +149,8 @@ def cg_resolution(w, radius, beam, q_min, m, q_reg=0.0, element_pairs=None) -> R
             A gap measured between contact points, like the runs' ``min_gap``, exceeds the
             surface gap by up to h^2 / (8 (R1 + R2)) when the points are staggered: rho is
             then a lower bound, tight near the threshold (to q / (4 (m - 7/2))).
-        m, q_reg: exponent and regularisation gap of the law.
+        m: exponent of the law.
+        q_reg: regularisation gap of the law.
         element_pairs: interacting element pairs (P, 2); rows with an index >= E (the
             sentinel of ``ContactElements.pairs``) are ignored. None: every two beams.
     """

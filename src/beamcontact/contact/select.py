@@ -21,7 +21,8 @@ def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
     Args:
         q: gaps of every point pair of every candidate block (inf for padding blocks).
         pairs: the blocks' global element indices (C, 2); padding rows are >= E.
-        beam_of, local_element: beam and index within its beam of every global element.
+        beam_of: beam of every global element.
+        local_element: index within its beam of every global element.
         n_elements: number of elements of every beam.
         q_active: pairs with a larger gap are left out (they cannot touch in this step).
         rtol: relative tolerance of "equal distance" on plateaus.

@@ -312,8 +312,10 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
     Args:
         model: the discrete model.
         state: initial (or restart) state.
-        t_end: final time; alpha: HHT parameter in [-1/3, 0].
-        options: Newton settings; length: the length scale L of the tolerances.
+        t_end: final time.
+        alpha: HHT parameter in [-1/3, 0].
+        options: Newton settings.
+        length: the length scale L of the tolerances.
         control: step-controller settings.
         dt_start: the step to try first (default control.dt; a restart passes the
             interrupted run's next step).

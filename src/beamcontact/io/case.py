@@ -1,16 +1,22 @@
-"""The case file: TOML validated by pydantic v2 (DESIGN.md Sec. 4).
+"""The case: TOML validated by pydantic v2 (DESIGN.md Sec. 4), or built in Python.
 
 Every invalid value is reported as one line naming the key, e.g.
 ``beams[0] (lower).section.radius: must be > 0, got -0.1``. SI units throughout.
+A :class:`Case` built in Python from these classes (``Case(analysis=Analysis(...),
+beams=[Beam(...)], ...)``) runs the same checks, cross-checks between sections included,
+and converts to and from TOML (:meth:`Case.to_toml`, :meth:`Case.from_toml`).
 """
 
 import math
+import re
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     ValidationError,
@@ -18,6 +24,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from pydantic_core import PydanticCustomError
 
 
 class CaseError(ValueError):
@@ -28,7 +35,16 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
 
-Vec2 = Annotated[list[float], Field(min_length=2, max_length=2)]
+def _as_list(value: Any) -> Any:
+    """Tuples and NumPy arrays given in Python become the lists a TOML file gives."""
+    if isinstance(value, tuple):
+        return [_as_list(v) for v in value]
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()
+    return value
+
+
+Vec2 = Annotated[list[float], BeforeValidator(_as_list), Field(min_length=2, max_length=2)]
 Positive = Annotated[float, Field(gt=0.0)]
 
 
@@ -85,9 +101,9 @@ class Nurbs(_Strict):
     """A NURBS axis given directly (open knot vector; weights default to 1)."""
 
     degree: Annotated[int, Field(ge=1)]
-    knots: list[float]
-    points: list[Vec2]
-    weights: list[Positive] | None = None
+    knots: Annotated[list[float], BeforeValidator(_as_list)]
+    points: Annotated[list[Vec2], BeforeValidator(_as_list)]
+    weights: Annotated[list[Positive], BeforeValidator(_as_list)] | None = None
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -113,14 +129,14 @@ class Nurbs(_Strict):
 class CircleSection(_Strict):
     """Solid circle of ``radius`` [m]."""
 
-    shape: Literal["circle"]
+    shape: Literal["circle"] = "circle"
     radius: Positive
 
 
 class RectangleSection(_Strict):
     """Rectangle ``width`` (out of plane) x ``height`` (in the plane of bending) [m]."""
 
-    shape: Literal["rectangle"]
+    shape: Literal["rectangle"] = "rectangle"
     width: Positive
     height: Positive
 
@@ -250,13 +266,14 @@ class Contact(_Strict):
     penalty: Positive = 1.0e6
     exponent: Annotated[float, Field(gt=3.5)] = 12.0
     k: Positive = 5.0e-25
-    densities: Annotated[list[Positive], Field(min_length=1)] = [1.0]
+    densities: Annotated[list[Positive], BeforeValidator(_as_list), Field(min_length=1)] = [1.0]
     cutoff: Positive = 0.3
     q_reg: Positive | None = None
     max_penetration: Positive | None = None
     capacity: Annotated[int, Field(ge=1)] = 128
-    pairs: Annotated[list[Annotated[list[str], Field(min_length=2, max_length=2)]],
-                     Field(min_length=1)] | None = None
+    pairs: Annotated[list[Annotated[list[str], BeforeValidator(_as_list),
+                                    Field(min_length=2, max_length=2)]],
+                     BeforeValidator(_as_list), Field(min_length=1)] | None = None
 
 
 class Solver(_Strict):
@@ -315,9 +332,38 @@ class Case(_Strict):
     solver: Solver = Solver()
     output: Output = Output()
 
+    @model_validator(mode="after")
+    def _cross_checks(self):
+        try:
+            _check_references(self)
+        except CaseError as exc:  # its message names the key; keep it as it is
+            raise PydanticCustomError("cross_check", str(exc)) from None
+        return self
+
     def beam_index(self, name: str) -> int:
         """Index of the beam called ``name``."""
         return [b.name for b in self.beams].index(name)
+
+    def to_toml(self) -> str:
+        """The case as a TOML case file (every value that is set; None means "default"
+        and is left out, as TOML has no null)."""
+        import tomli_w
+
+        text = tomli_w.dumps(self.model_dump(mode="json", exclude_none=True))
+        # tomli_w puts every array element on a line of its own; short arrays of numbers
+        # and strings read better on one line, as a person writes them
+        return re.sub(r"\[\n((?:    [^\[\]{}\n]+,\n)+)\]",
+                      lambda m: "[" + ", ".join(v.strip().rstrip(",")
+                                                for v in m.group(1).splitlines()) + "]", text)
+
+    @classmethod
+    def from_toml(cls, text: str) -> "Case":
+        """Parse and validate the text of a TOML case file (raises CaseError)."""
+        try:
+            raw = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise CaseError(f"invalid TOML: {exc}") from None
+        return parse_case(raw)
 
 
 def _key_path(loc: tuple, raw: dict) -> str:
@@ -343,6 +389,8 @@ def _key_path(loc: tuple, raw: dict) -> str:
 def _describe(err: dict, raw: dict) -> str:
     path = _key_path(tuple(err["loc"]), raw)
     kind = err["type"]
+    if kind == "cross_check":
+        return err["msg"]
     if kind == "missing":
         return f"{path}: required key is missing"
     if kind == "extra_forbidden":
@@ -360,14 +408,13 @@ def parse_case(raw: dict) -> Case:
         errors = exc.errors()
         more = f" (and {len(errors) - 1} more problem(s))" if len(errors) > 1 else ""
         raise CaseError(_describe(errors[0], raw) + more) from None
-    _check_references(case)
     return case
 
 
 def _check_references(case: Case) -> None:
     names = [b.name for b in case.beams]
     for i, name in enumerate(names):
-        if names.count(name) > 1:
+        if name in names[:i]:
             raise CaseError(f"beams[{i}].name: duplicate beam name {name!r}")
     known = ", ".join(names)
     for group, items in (("loads", case.loads), ("output.points", case.output.points)):
@@ -377,7 +424,7 @@ def _check_references(case: Case) -> None:
                                 f"(beams are: {known})")
     point_names = [p.name for p in case.output.points]
     for i, name in enumerate(point_names):
-        if point_names.count(name) > 1:
+        if name in point_names[:i]:
             raise CaseError(f"output.points[{i}].name: duplicate point name {name!r}")
     seen = set()
     for i, pair in enumerate(case.contact.pairs or []):
@@ -408,7 +455,7 @@ def _check_references(case: Case) -> None:
                             f"than the arc radius {b.arc.radius}")
 
 
-def load_case(path: str | Path) -> tuple[Case, str]:
+def read_case_file(path: str | Path) -> tuple[Case, str]:
     """Read and validate a TOML case file; returns the case and the file's text."""
     path = Path(path)
     try:

@@ -96,14 +96,14 @@ def write_table(path: Path, columns: list[str], rows: list[dict]) -> None:
 
 
 class StateWriter:
-    flush_seconds = 2.0
-
     """results.h5: the model (knots, weights, reference points) and every accepted state.
 
     Layout: ``/model/<beam>/{knots, weights, reference_points}`` with attrs degree and
     offset; ``/states/{step, parameter, u}`` growing along the first axis (``parameter`` is
     the load factor in statics and the time in dynamics); root attrs ``case_toml``.
     """
+
+    flush_seconds = 2.0
 
     def __init__(self, path: Path, case_text: str, beams, n_dof: int, parameter_name: str,
                  resume_after_step: int | None = None):

@@ -1,0 +1,129 @@
+"""Progress of a running case: what the solver reports after every accepted step.
+
+The runner calls a ``Progress`` callback with a :class:`ProgressInfo`; the command line
+draws it as a one-line bar (:func:`progress_bar`), a sweep forwards ``fraction`` and
+:meth:`ProgressInfo.text` to the client, a script may record it. Nothing here touches the
+solver, and importing this module does not import rich (the bar imports it when drawn).
+
+The bar fits in 80 columns at any terminal width of 80 or more: the case title is printed
+once above it (a title inside the bar squeezes the bar until the line wraps, and a wrapped
+line is reprinted at every refresh), the bar itself has a fixed width, and every text column
+has a fixed width, so the line neither grows with the terminal nor jitters from step to step.
+"""
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class ProgressInfo:
+    """The state of a run after one accepted step (or before the first one)."""
+
+    fraction: float          # of the run done, 0..1 (t / t_end, or the load factor)
+    parameter: str           # "t" (dynamics) or "load_factor" (statics)
+    value: float             # the time [s] or load factor reached
+    step: int                # accepted steps so far
+    dt: float | None = None  # the last step [s] (dynamics)
+    iterations: int = 0      # Newton iterations of the last step
+
+    def text(self) -> str:
+        """A short description, e.g. ``t 1.234 s  dt 1.0e-03 s  it 2``."""
+        if self.step == 0:
+            return "compiling"
+        if self.parameter == "t":
+            dt = "" if self.dt is None else f"  dt {self.dt:.1e} s"
+            return f"t {self.value:.4g} s{dt}  it {self.iterations}"
+        return f"load {self.value:.3f}  it {self.iterations}"
+
+
+Progress = Callable[[ProgressInfo], None]
+
+MAX_WIDTH = 80
+"""The widest line the bar and its title may take, whatever the terminal width."""
+
+_BAR_WIDTH = 16
+_REFRESH_PER_SECOND = 4
+# (task field, column width): value reached, step size, Newton iterations of the last step.
+# With the bar, the percentage, elapsed and "eta" + remaining time and one space between
+# columns, a line is 16+4+13+12+6+7+3+7 + 7 = 75 columns wide.
+_FIELD_WIDTHS = (("value", 13), ("dt", 12), ("iterations", 6))
+
+
+def _fields(info: ProgressInfo) -> dict[str, str]:
+    """The texts of the bar's columns for ``info`` (time or load factor, dt, iterations)."""
+    if info.step == 0:
+        return {"value": "compiling", "dt": "", "iterations": ""}
+    value = f"t {info.value:.4g} s" if info.parameter == "t" else f"load {info.value:.3f}"
+    dt = "" if info.dt is None else f"dt {info.dt:.1e} s"
+    return {"value": value, "dt": dt, "iterations": f"it {info.iterations}"}
+
+
+def _columns() -> list[Any]:
+    """The bar's rich columns, each of fixed width, so that a line stays within 80 columns."""
+    from rich.progress import (
+        BarColumn,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.table import Column
+
+    def fixed(width: int) -> Column:
+        return Column(width=width, no_wrap=True, overflow="ellipsis")
+
+    text = [TextColumn(f"{{task.fields[{name}]}}", markup=False, table_column=fixed(width))
+            for name, width in _FIELD_WIDTHS]
+    return [BarColumn(bar_width=_BAR_WIDTH), TaskProgressColumn(table_column=fixed(4)), *text,
+            TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn()]
+
+
+def _completed(fraction: float) -> float:
+    """``fraction`` clamped to 0..1, and 1 when within round-off of it (t_end reached as a
+    sum of steps), so that a finished run shows a full bar and no time left."""
+    return 1.0 if fraction >= 1.0 - 1e-9 else max(fraction, 0.0)
+
+
+def _print_title(console: Any, title: str) -> None:
+    """Print the case title on its own line, cut with an ellipsis to at most 80 columns."""
+    from rich.text import Text
+
+    width = min(console.width, MAX_WIDTH)
+    console.print(Text(title), width=width, no_wrap=True, overflow="ellipsis", crop=True)
+
+
+def _ignore(info: ProgressInfo) -> None:
+    """The callback of a disabled bar: does nothing."""
+
+
+@contextmanager
+def progress_bar(title: str, enabled: bool = True, console: Any = None) -> Iterator[Progress]:
+    """Draw the progress of one run as a bar at most 80 columns wide, for a ``with`` block.
+
+    Prints ``title`` once on its own line, then yields the :data:`Progress` callback to
+    hand to the runner: each call moves the bar and shows the time (or load factor)
+    reached, the last step size, the Newton iterations of the last step, the elapsed time
+    and an estimate of the time left. The bar is redrawn at most four times a second
+    whatever the step rate, and is left on screen in its last state when the block ends
+    (also on an exception, e.g. Ctrl-C, so that a message printed afterwards comes below
+    it). With ``enabled`` false nothing is drawn and the callback does nothing (``--quiet``).
+    ``console`` is a rich Console to draw on (default: rich's console on stdout; tests pass
+    one writing to a string).
+    """
+    if not enabled:
+        yield _ignore
+        return
+    from rich.progress import Progress as RichProgress
+
+    bar = RichProgress(*_columns(), console=console, refresh_per_second=_REFRESH_PER_SECOND,
+                       transient=False)
+    _print_title(bar.console, title)
+    task = bar.add_task("", total=1.0, **_fields(ProgressInfo(0.0, "t", 0.0, 0)))
+
+    def show(info: ProgressInfo) -> None:
+        bar.update(task, completed=_completed(info.fraction), **_fields(info))
+
+    with bar:
+        yield show

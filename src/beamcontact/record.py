@@ -1,0 +1,202 @@
+"""What a run keeps: the history rows and the snapshots, in memory and optionally on disk.
+
+A :class:`RunRecord` always holds the history (one row per accepted step, the columns of
+``history.csv``) and the snapshots (control points at the VTU cadence) in memory, so
+that :func:`beamcontact.simulate` can return them without files. With an output folder it
+also writes them as they come (DESIGN.md Sec. 4): ``history.csv`` row by row,
+``results.h5`` (every state, for restart), ``vtk/*.vtu`` + ``beams.pvd``, and after the
+run the standard plots. Nothing is lost when a run stops: every file is valid after each
+step.
+"""
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from beamcontact.assembly.build import Discretization, point_sampler, polyline_matrix
+from beamcontact.io.case import Case, at_fraction
+from beamcontact.io.results import HistoryWriter, StateWriter, read_history
+from beamcontact.io.vtk import VtkSeries
+
+
+class OutputPoints:
+    """Evaluates the followed points from the global control points."""
+
+    def __init__(self, case: Case, disc: Discretization, x_ref: np.ndarray):
+        self.names = [p.name for p in case.output.points]
+        self._samplers = [point_sampler(disc, p.beam, at_fraction(p.at))
+                          for p in case.output.points]
+        self._ref = [R @ x_ref[idx] for idx, R in self._samplers]
+
+    def columns(self) -> list[str]:
+        """history.csv columns of the points."""
+        return [f"{n}_{c}" for n in self.names for c in ("x", "y", "ux", "uy")]
+
+    def values(self, x: np.ndarray) -> dict:
+        """Positions and displacements of every point for control points x."""
+        row = {}
+        for n, (idx, R), ref in zip(self.names, self._samplers, self._ref, strict=True):
+            p = R @ x[idx]
+            row.update({f"{n}_x": p[0], f"{n}_y": p[1], f"{n}_ux": p[0] - ref[0],
+                        f"{n}_uy": p[1] - ref[1]})
+        return row
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The control points (n_cp, 2) of all beams at time or load factor ``parameter``."""
+
+    parameter: float
+    x: np.ndarray
+
+
+class _Files:
+    """The writers of an output folder."""
+
+    def __init__(self, record: "RunRecord", out_dir: Path, case_text: str, n_dof: int,
+                 resume: tuple[int, float] | None):
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "plots").mkdir(exist_ok=True)
+        step = None if resume is None else resume[0]
+        self.history = HistoryWriter(out_dir / "history.csv", record.columns, step)
+        self.states = StateWriter(out_dir / "results.h5", case_text, record.disc.beams, n_dof,
+                                  record.abscissa, step)
+        self.vtk = VtkSeries(out_dir, [m for m, _ in record.maps],
+                             [b.section.half_depth for b in record.disc.beams], record.x_ref,
+                             [b.offset for b in record.disc.beams],
+                             [b.n_cp for b in record.disc.beams],
+                             None if resume is None else resume[1])
+
+    def close(self) -> None:
+        self.history.close()
+        self.states.close()
+
+
+class RunRecord:
+    """History and snapshots of one run, kept in memory and written to ``out_dir`` if given.
+
+    ``abscissa`` is "t" (dynamics) or "load_factor" (statics); ``resume`` = (step, t) of a
+    restart: the rows and snapshots up to it are read back from the folder.
+    """
+
+    def __init__(self, case: Case, case_text: str, disc: Discretization, x_ref: np.ndarray,
+                 n_dof: int, out_dir: Path | None, abscissa: str, extra_columns: list[str],
+                 resume: tuple[int, float] | None = None):
+        self.case, self.disc, self.out_dir = case, disc, out_dir
+        self.x_ref = np.asarray(x_ref)
+        self.points = OutputPoints(case, disc, self.x_ref)
+        self.abscissa = abscissa
+        self.columns = ["step", abscissa, *self.points.columns(), *extra_columns,
+                        "newton_iters", "cutbacks"] + (["dt"] if abscissa == "t" else [])
+        self.maps = [(polyline_matrix(b, case.output.samples_per_element),
+                      slice(b.offset, b.offset + b.n_cp)) for b in disc.beams]
+        self._rows: list[np.ndarray] = []
+        self.snapshots: list[Snapshot] = []
+        self.files = None if out_dir is None else _Files(self, out_dir, case_text, n_dof, resume)
+        if resume is not None and out_dir is not None:
+            self._read_back(out_dir, resume)
+
+    def _read_back(self, out_dir: Path, resume: tuple[int, float]) -> None:
+        """Rows and snapshots of the run being continued (already truncated to ``resume``)."""
+        import h5py
+
+        old = read_history(out_dir / "history.csv")
+        self._rows = [np.array([old[c][k] for c in self.columns]) for k in range(len(old["step"]))]
+        with h5py.File(out_dir / "results.h5", "r") as f:
+            params, u = f["states/parameter"][:], f["states/u"]
+            picks = self.snapshot_indices(params)
+            self.snapshots = [Snapshot(float(params[i]), self.x(u[i])) for i in picks]
+
+    def snapshot_indices(self, params: np.ndarray) -> np.ndarray:
+        """Indices of the saved states nearest the VTU cadence (dynamics: every
+        output.vtk_interval seconds)."""
+        interval = self.case.output.vtk_interval or self.case.analysis.t_end / 100
+        marks = np.arange(0.0, params[-1] + 1e-9, interval)
+        return np.unique(np.searchsorted(params, marks - 1e-9).clip(0, len(params) - 1))
+
+    def x(self, u) -> np.ndarray:
+        """Control points for the flat displacement u."""
+        return self.x_ref + np.asarray(u).reshape(-1, 2)
+
+    def row(self, step: int, parameter: float, u, values: dict, iterations: int,
+            cutbacks: int, **extra) -> None:
+        """Append one history row."""
+        row = {"step": step, self.abscissa: parameter, **self.points.values(self.x(u)),
+               **values, "newton_iters": iterations, "cutbacks": cutbacks, **extra}
+        self._rows.append(np.array([float(row[c]) for c in self.columns]))
+        if self.files is not None:
+            self.files.history.write(row)
+
+    def state(self, step: int, parameter: float, u, **extra) -> None:
+        """Save a full state (results.h5; only with an output folder)."""
+        if self.files is not None:
+            self.files.states.write(step, parameter, u, **extra)
+
+    def snapshot(self, parameter: float, u) -> None:
+        """Keep the control points at this instant (and write a VTU file)."""
+        x = self.x(u)
+        self.snapshots.append(Snapshot(float(parameter), x))
+        if self.files is not None:
+            self.files.vtk.write(parameter, x)
+
+    def history(self) -> dict[str, np.ndarray]:
+        """The history as columns."""
+        table = np.array(self._rows).reshape(len(self._rows), len(self.columns))
+        return {c: table[:, k] for k, c in enumerate(self.columns)}
+
+    def close(self) -> None:
+        """Close the files (they are complete after every step already)."""
+        if self.files is not None:
+            self.files.close()
+
+    def axes(self, x: np.ndarray) -> list[np.ndarray]:
+        """Polylines of every beam axis for control points x."""
+        return [m @ x[s] for m, s in self.maps]
+
+    def centrelines(self) -> dict[str, np.ndarray]:
+        """Each beam's axis at every snapshot: name -> (n_snapshots, n_samples, 2)."""
+        lines = [self.axes(s.x) for s in self.snapshots]
+        return {b.name: np.array([frame[k] for frame in lines])
+                for k, b in enumerate(self.case.beams)}
+
+    def extremes(self) -> dict:
+        """Smallest, largest and final displacement of every output point."""
+        h = self.history()
+        return {f"{n}_{c}": {"min": float(h[f"{n}_{c}"].min()),
+                             "max": float(h[f"{n}_{c}"].max()),
+                             "final": float(h[f"{n}_{c}"][-1])}
+                for n in self.points.names for c in ("ux", "uy")}
+
+    def plots(self) -> None:
+        """Into out_dir/plots: shapes.png, points.png; dynamics also energies.png,
+        snapshots.png (a grid of instants) and animation.gif (every snapshot, at most
+        300)."""
+        if self.out_dir is None or not self.snapshots:
+            return
+        from beamcontact.plot import (
+            animate,
+            plot_energies,
+            plot_point_histories,
+            plot_shapes,
+            plot_snapshots,
+        )
+
+        plots, title = self.out_dir / "plots", self.case.title
+        n = len(self.snapshots)
+        picks = np.unique(np.linspace(0, n - 1, min(n, 9)).astype(int))
+        shapes = [(self.snapshots[i].parameter, self.axes(self.snapshots[i].x)) for i in picks]
+        plot_shapes([(f"{self.abscissa} {p:.3g}", a) for p, a in shapes],
+                    self.axes(self.x_ref), plots / "shapes.png", title)
+        history = self.history()
+        if self.points.names:
+            plot_point_histories(history, self.abscissa, self.points.names,
+                                 plots / "points.png", title)
+        if self.abscissa != "t":
+            return
+        plot_snapshots(shapes, [b.section.half_depth for b in self.disc.beams],
+                       plots / "snapshots.png", title)
+        plot_energies(history, plots / "energies.png", title)
+        frames = [(s.parameter, self.axes(s.x)) for s in self.snapshots[::int(np.ceil(n / 300))]]
+        if len(frames) > 1:
+            animate(frames, self.out_dir / "animation.gif", title)

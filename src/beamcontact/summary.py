@@ -1,0 +1,89 @@
+"""The summary of a run (summary.json): settings, first impact, amplitudes, impacts.
+
+Pure functions of the case and of the history columns; the runner adds the solver's
+counters. DESIGN.md Sec. 4 lists what summary.json holds.
+"""
+
+import numpy as np
+
+from beamcontact.io.case import Case
+
+
+def effective_settings(case: Case) -> dict:
+    """Every [solver] value, defaults included, and for dynamics the step bounds and
+    alpha actually used: enough to reproduce the run."""
+    settings = case.solver.model_dump()
+    an = case.analysis
+    if an.kind == "dynamic":
+        settings.update(dt=an.dt, dt_min=an.smallest_step, alpha=an.alpha)
+    else:
+        settings.update(load_steps=an.load_steps)
+    return settings
+
+
+def contact_summary(h: dict, points: list[str], contact) -> dict:
+    """First impact, first amplitude of each output point after it, gap extremes.
+
+    The first impact is the first accepted step whose smallest gap is below 1 % of the
+    smallest contact radius; the first amplitude of a point is the extreme u_y of its
+    first excursion after that time (until u_y changes sign, or the end of the run).
+    """
+    if contact is None:
+        return {}
+    gap = h["min_gap"]
+    r_min = float(np.min(np.asarray(contact.elements.radius)))
+    hit = np.where(gap <= 0.01 * r_min)[0]
+    out = {"min_gap": float(np.nanmin(gap)),
+           "max_penetration": float(max(0.0, -np.nanmin(gap))),
+           "first_impact_time": float(h["t"][hit[0]]) if hit.size else None,
+           "first_amplitude": {},
+           "impacts": contact_episodes(h)}
+    if hit.size:
+        for name in points:
+            out["first_amplitude"][name] = first_excursion_extreme(h["t"][hit[0]:],
+                                                                   h[f"{name}_uy"][hit[0]:])
+    return out
+
+
+def contact_episodes(h: dict, level: float = 1e-4) -> list[dict]:
+    """Every contact of the run: it starts at the first step whose contact energy exceeds
+    ``level`` times the largest E_kin + E_strain + |E_contact| of the run, and ends at the
+    first step after it where it falls below a quarter of that (the hysteresis keeps a
+    grazing contact from counting as many). For each: start and end time (None if still
+    in contact at the end), the smallest gap, and the changes of the total energy, of
+    E_dissipated and of E_set_change from the step before it starts to the step where it
+    ends (E_change = E_set_change - E_dissipated)."""
+    e_con, t = np.abs(h["E_contact"]), h["t"]
+    threshold = level * float(np.max(h["E_kin"] + h["E_strain"] + e_con))
+    episodes, k, n = [], 0, len(t)
+    while k < n:
+        if not e_con[k] > threshold:
+            k += 1
+            continue
+        begin = k
+        while k < n and not e_con[k] < 0.25 * threshold:
+            k += 1
+        before, after = max(begin - 1, 0), min(k, n - 1)
+        episodes.append({
+            "start": float(t[begin]), "end": float(t[k]) if k < n else None,
+            "min_gap": float(np.min(h["min_gap"][begin:after + 1])),
+            "E_total_before": float(h["E_total"][before]),
+            "E_change": float(h["E_total"][after] - h["E_total"][before]),
+            "E_dissipated": float(h["E_dissipated"][after] - h["E_dissipated"][before]),
+            "E_set_change": float(h["E_set_change"][after] - h["E_set_change"][before])})
+    return episodes
+
+
+def first_excursion_extreme(t: np.ndarray, uy: np.ndarray, level: float = 0.01) -> dict:
+    """Extreme of the first excursion of ``uy``: it starts where |uy| first exceeds
+    ``level`` times max |uy| and ends where uy passes that level with the opposite sign
+    (or at the end), so that round-off wiggles about zero do not count as excursions."""
+    tau = level * float(np.max(np.abs(uy)))
+    if tau == 0.0:
+        return {"uy": 0.0, "t": float(t[0])}
+    k0 = int(np.argmax(np.abs(uy) > tau))
+    sign = np.sign(uy[k0])
+    back = np.where(sign * uy[k0:] < -tau)[0]
+    end = k0 + (int(back[0]) if back.size else len(uy) - k0)
+    k = k0 + int(np.argmax(sign * uy[k0:end]))
+    return {"uy": float(uy[k]), "t": float(t[k])}
