@@ -26,7 +26,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 from beamcontact.assembly.build import build_model  # noqa: E402
 from beamcontact.assembly.model import initial_load_state  # noqa: E402
 from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
-from beamcontact.contact.problem import build_contact  # noqa: E402
+from beamcontact.contact.problem import build_contact, freeze  # noqa: E402
 from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities  # noqa: E402
 from beamcontact.dynamics.hht import initial_state  # noqa: E402
 from beamcontact.io.case import parse_case  # noqa: E402
@@ -55,7 +55,7 @@ def run(model_name: str, t_end: float) -> None:
     v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
     cs0, cap = contact.grown_set(model.x_ref, 0.0, case.contact.capacity)
     state = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model),
-                          contact.elements, cs0, contact.law)
+                          freeze(contact, cs0))
     opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, 0.0, case.solver.utol)
     kept = {}
 
@@ -75,9 +75,9 @@ def run(model_name: str, t_end: float) -> None:
         cs, _ = contact.grown_set(x, 0.0, cap)
         ls = initial_load_state(model)
         with_c = jax.jit(lambda u, cs: residual_tangent_with_contact(
-            u, model, 1.0, ls, contact.elements, cs, contact.law))
+            u, model, 1.0, ls, freeze(contact, cs)))
         without = jax.jit(lambda u: residual_tangent_with_contact(
-            u, model, 1.0, ls, None, None, "none"))
+            u, model, 1.0, ls, None))
         tc, tn = _time(lambda: with_c(u, cs)), _time(lambda: without(u))
         share = (tc - tn) / tc
     print(f"| {model_name:<4} | {t_end:4.1f} | {res.steps:6d} | {res.iterations:6d} | "

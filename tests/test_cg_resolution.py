@@ -19,7 +19,7 @@ from scipy.integrate import quad
 
 from beamcontact.assembly.build import build_model
 from beamcontact.contact.blocks import ContactSet, contact_energy
-from beamcontact.contact.laws import cg_constant
+from beamcontact.contact.laws import CoarseGrained, cg_constant
 from beamcontact.contact.points import contact_elements
 from beamcontact.contact.resolution import (
     THRESHOLD,
@@ -52,13 +52,13 @@ def _model():
 
 
 @jax.jit
-def _energy_and_force(x_ref, upper, ce, params, offsets):
+def _energy_and_force(x_ref, upper, ce, law, offsets):
     """Energy of the blocks of all element pairs, and the force (-dE/da, -dE/db) on the
     upper beam, at tangential offsets a (``offsets``) and normal offset b = 0."""
-    cs = ContactSet(ce.pairs[:-1], None, params)
+    cs = ContactSet(ce.pairs[:-1], None, law)
 
     def energy(ab):
-        return contact_energy(x_ref + upper[:, None] * ab, ce, cs, "cg")
+        return contact_energy(x_ref + upper[:, None] * ab, ce, cs)
 
     def energy_and_force(ab):
         # forward mode, one tangent per direction: half the compile time of a gradient
@@ -78,9 +78,9 @@ def _slide(segments: int, m: float):
     upper = np.zeros(model.x_ref.shape[0])
     upper[disc.beam("upper").offset:] = 1.0
     # cutoff 1 m: every pair counts, as in the line integral; q_reg far below Q
-    params = jnp.asarray([0.0, K_M, m, 1e-8, 1.0])
+    law = CoarseGrained(k=K_M, exponent=m, q_reg=1e-8, cutoff=1.0)
     a = h * np.arange(N_OFFSETS) / N_OFFSETS
-    e, f = _energy_and_force(jnp.asarray(model.x_ref), jnp.asarray(upper), ce, params,
+    e, f = _energy_and_force(jnp.asarray(model.x_ref), jnp.asarray(upper), ce, law,
                              jnp.asarray(a))
     return h, a, np.asarray(e), np.asarray(f[:, 0]), np.asarray(f[:, 1])
 

@@ -8,11 +8,12 @@ from _builders import beam
 
 from beamcontact.assembly.build import build_model, point_sampler
 from beamcontact.assembly.model import initial_load_state
+from beamcontact.assembly.system import contact_residual_tangent
 from beamcontact.contact.blocks import (
+    FrozenContact,
+    arc_length_weights,
     block_gaps,
-    block_weights_cg,
     contact_energy,
-    contact_residual_tangent,
 )
 from beamcontact.contact.broadphase import candidate_pairs, element_boxes
 from beamcontact.contact.laws import cg_constant, cg_potential
@@ -124,9 +125,9 @@ def test_contact_residual_and_tangent_against_central_differences(law):
     assert int(jnp.sum(cs.pairs[:, 0] < problem.elements.n_elements)) > 0
     assert (cs.W is None) == (law == "cg")  # cg: arc-length weights formed in the kernel
     assert law == "cg" or float(jnp.max(cs.W)) > 0
-    energy = jax.jit(lambda y: contact_energy(y.reshape(-1, 2), problem.elements, cs, law))
-    r, K = jax.jit(contact_residual_tangent, static_argnums=(3, 4))(
-        x, problem.elements, cs, law, model.n_dof)
+    energy = jax.jit(lambda y: contact_energy(y.reshape(-1, 2), problem.elements, cs))
+    r, K = jax.jit(contact_residual_tangent, static_argnums=(2,))(
+        x, FrozenContact(problem.elements, cs), model.n_dof)
     y0 = np.asarray(x).ravel()
     h = 1e-6
     fd_r = np.array([(energy(y0 + h * e) - energy(y0 - h * e)) / (2 * h)
@@ -143,8 +144,8 @@ def test_contact_residual_and_tangent_against_central_differences(law):
 def test_no_nan_at_zero_or_negative_gap(law, dy):
     model, problem, x = _two_beams(law, dy=dy)
     cs, _ = problem.grown_set(x, 0.05, 8)
-    r, K = contact_residual_tangent(x, problem.elements, cs, law, model.n_dof)
-    e = contact_energy(x, problem.elements, cs, law)
+    r, K = contact_residual_tangent(x, FrozenContact(problem.elements, cs), model.n_dof)
+    e = contact_energy(x, problem.elements, cs)
     assert np.isfinite(float(e)) and np.all(np.isfinite(r)) and np.all(np.isfinite(K))
     assert float(jnp.min(block_gaps(x, problem.elements, cs.pairs))) <= 0.0 + 1e-12 or dy > -0.2
 
@@ -266,7 +267,7 @@ def _run_collision(case, capacity=8):
     v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
     cs0, _ = contact.grown_set(model.x_ref, 0.0, capacity)
     s0 = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model),
-                       contact.elements, cs0, contact.law)
+                       FrozenContact(contact.elements, cs0))
     rows = []
     res = solve_dynamic(model, s0, case.analysis.t_end, case.analysis.alpha,
                         NewtonOptions(rtol=1e-11), disc.length_scale, step_control(case),
@@ -333,7 +334,7 @@ def test_weights_of_cg_blocks_are_reference_arc_lengths():
     lengths = [np.sum(w[np.asarray(ce.beam) == b]) for b in range(2)]
     np.testing.assert_allclose(lengths, [2.0, np.hypot(1.2, 0.15)], rtol=1e-12)
     pairs = jnp.asarray([[0, 4], [ce.n_elements, ce.n_elements]])
-    W = np.asarray(block_weights_cg(ce, pairs))
+    W = np.asarray(arc_length_weights(ce, pairs))
     np.testing.assert_allclose(W[0], np.outer(w[0], w[4]))
     assert np.all(W[1] == 0)
 
@@ -368,8 +369,8 @@ def test_listed_pairs_only_interact(law):
 
     def energy_and_force(model, problem, x):
         cs, _ = problem.grown_set(x, 0.0, 64)
-        e = contact_energy(x, problem.elements, cs, law)
-        r, _ = contact_residual_tangent(x, problem.elements, cs, law, model.n_dof)
+        e = contact_energy(x, problem.elements, cs)
+        r, _ = contact_residual_tangent(x, FrozenContact(problem.elements, cs), model.n_dof)
         return float(e), np.asarray(r)
 
     e3, r3 = energy_and_force(model3, p3, x3)

@@ -19,8 +19,9 @@ import numpy as np
 from beamcontact import __version__, require_x64
 from beamcontact.assembly.build import Discretization, build_model, discretize
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
+from beamcontact.contact.laws import CoarseGrained
 from beamcontact.contact.overlap import describe, initial_overlaps
-from beamcontact.contact.problem import build_contact
+from beamcontact.contact.problem import build_contact, freeze
 from beamcontact.contact.resolution import contact_resolution, resolution_warning
 from beamcontact.dynamics.driver import (
     DIAGNOSTICS,
@@ -124,8 +125,9 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
     summary, record = run(case, case_text, disc, model, out_dir, opts, progress, restart,
                           contact)
-    if contact is not None and contact.law == "cg" and summary.get("min_gap") is not None:
-        res = contact_resolution(contact.elements, contact.params, summary["min_gap"])
+    if (contact is not None and isinstance(contact.law, CoarseGrained)
+            and summary.get("min_gap") is not None):
+        res = contact_resolution(contact.elements, contact.law, summary["min_gap"])
         summary["cg_resolution"] = res.as_dict()
         if res.under_resolved:
             warnings.append(resolution_warning(res, [b.name for b in case.beams]))
@@ -335,9 +337,7 @@ def _initial_dynamic_state(case: Case, disc: Discretization, model: Model, conta
     v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
     cs0 = None if contact is None else contact.grown_set(
         model.x_ref, 0.0, case.contact.capacity)[0]
-    state = initial_state(u0, v0, model, initial_load_state(model),
-                          None if contact is None else contact.elements, cs0,
-                          "none" if contact is None else contact.law)
+    state = initial_state(u0, v0, model, initial_load_state(model), freeze(contact, cs0))
     return state, cs0
 
 

@@ -19,7 +19,7 @@ from beamcontact.beam.energy import (
     point_strain_energy,
 )
 from beamcontact.beam.loads import point_load_potential, tangent_rotation
-from beamcontact.contact.blocks import contact_energy, contact_residual_tangent
+from beamcontact.contact.blocks import FrozenContact, contact_energy, fold_block_forces
 
 
 def _beam_residual_tangent(x, blk: BeamBlock, lam, gravity):
@@ -101,22 +101,33 @@ def potential_residual_tangent(u: jax.Array, model: Model, lam, load_state: Load
     return r, K
 
 
-def residual_tangent_with_contact(u, model: Model, lam, load_state: LoadState, ce, cs,
-                                  law: str):
-    """:func:`potential_residual_tangent` plus the contact blocks frozen in ``cs``."""
+def residual_tangent_with_contact(u, model: Model, lam, load_state: LoadState,
+                                  contact: FrozenContact | None):
+    """:func:`potential_residual_tangent` plus the frozen contact blocks (None: none)."""
     r, K = potential_residual_tangent(u, model, lam, load_state)
-    if law == "none":
+    if contact is None:
         return r, K
-    x = model.x_ref + u.reshape(-1, 2)
-    r_c, K_c = contact_residual_tangent(x, ce, cs, law, model.n_dof)
+    r_c, K_c = contact_residual_tangent(model.x_ref + u.reshape(-1, 2), contact, model.n_dof)
     return r + r_c, K + K_c
 
 
-def contact_energy_of(u, model: Model, ce, cs, law: str):
+def contact_residual_tangent(x, contact: FrozenContact, n_dof: int):
+    """Global contact force (gradient of the contact energy) and tangent (its Hessian) of
+    the frozen blocks at control points x."""
+    zero = (jnp.zeros(n_dof, x.dtype), jnp.zeros((n_dof, n_dof), x.dtype))
+    return fold_block_forces(x, contact.elements, contact.blocks, _scatter_blocks, zero)
+
+
+def _scatter_blocks(carry, conn, f, k):
+    """Add contact blocks (control points conn of both elements) to carry = (r, K)."""
+    return _scatter(*carry, element_dofs(conn), f, k)
+
+
+def contact_energy_of(u, model: Model, contact: FrozenContact | None):
     """Contact energy of the frozen blocks at displacement u (0 without contact)."""
-    if law == "none":
+    if contact is None:
         return jnp.asarray(0.0)
-    return contact_energy(model.x_ref + u.reshape(-1, 2), ce, cs, law)
+    return contact_energy(model.x_ref + u.reshape(-1, 2), contact.elements, contact.blocks)
 
 
 def apply_supports(r: jax.Array, K: jax.Array, free: jax.Array):

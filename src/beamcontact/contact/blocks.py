@@ -5,7 +5,8 @@ p1_i = R1_i x_e1 and p2_j = R2_j x_e2, the energy is sum_ij W_ij phi(|p1_i - p2_
 AD acts on the scalar law f(s) = phi(sqrt(s)) of s = r . r, r_ij = p1_i - p2_j, only
 (f' and f''); the gradient 2 f' r and Hessian 2 f' I + 4 f'' r r^T in r, then the
 element-pair residual and the 2(n_loc) x 2(n_loc) tangent, follow by small batched
-products with the basis rows (DESIGN.md Sec. 7), before one scatter per chunk of blocks.
+products with the basis rows (DESIGN.md Sec. 7); the assembly scatters them, one chunk of
+blocks at a time (:func:`fold_block_forces`).
 
 W_ij is w1_i w2_j (reference arc lengths) for the coarse-grained model, computed chunk by
 chunk from the element indices (``ContactSet.W`` is None), and the host's selection of
@@ -17,8 +18,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
-from beamcontact.assembly.model import element_dofs
-from beamcontact.contact.laws import LAWS
+from beamcontact.contact.laws import ContactLaw
 from beamcontact.contact.points import ContactElements
 
 
@@ -27,27 +27,36 @@ from beamcontact.contact.points import ContactElements
 class ContactSet:
     """Candidate blocks frozen for one step: pairs (C, 2) global element indices (padding
     = E); pair weights W (C, n_s, n_s), or None for the reference arc-length weights of
-    the coarse-grained model (:func:`block_weights_cg`, formed chunk by chunk inside the
-    kernels, never as a whole list); ``params`` the law parameters."""
+    an integrated law (:func:`arc_length_weights`, formed chunk by chunk inside the
+    kernels, never as a whole list); ``law`` the contact law."""
 
     pairs: jax.Array
     W: jax.Array | None
-    params: jax.Array
+    law: ContactLaw
 
 
-def _pair_law(law: str):
-    """f(s, R12, amplitude, params) with s = |r|^2, and the per-block amplitude.
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class FrozenContact:
+    """What the assembly needs of contact in one step: the contact points of every
+    element and the frozen set of candidate blocks (with its law). No contact is None."""
+
+    elements: ContactElements
+    blocks: ContactSet
+
+
+def _pair_law(law: ContactLaw):
+    """f(s, R12, amplitude) with s = |r|^2.
 
     Writing the pair energy through s = r . r keeps it smooth at r = 0 and makes its
     derivatives in r exact algebra on the scalar AD derivatives f' = df/ds, f'' (see
     :func:`_pair_derivatives`).
     """
-    amplitude, energy = LAWS[law]
 
-    def f(s, R12, amp, params):
-        return energy(jnp.sqrt(jnp.where(s > 1e-300, s, 1e-300)), R12, amp, params)
+    def f(s, R12, amp):
+        return law.pair_energy(jnp.sqrt(jnp.where(s > 1e-300, s, 1e-300)), R12, amp)
 
-    return f, amplitude
+    return f
 
 
 def _pair_derivatives(f):
@@ -55,17 +64,17 @@ def _pair_derivatives(f):
     phi(r) = f(r . r) is 2 f' r and its Hessian 2 f' I + 4 f'' r r^T."""
     df = jax.grad(f)
 
-    def derivatives(s, R12, amp, params):
+    def derivatives(s, R12, amp):
         # f' and f'' in one forward pass over f' (they share every transcendental)
-        return jax.jvp(lambda s: df(s, R12, amp, params), (s,), (jnp.ones_like(s),))
+        return jax.jvp(lambda s: df(s, R12, amp), (s,), (jnp.ones_like(s),))
 
     return derivatives
 
 
 def _over_pairs(f):
-    """vmap f(x, R12, amp, params) over blocks and both point indices of x (C, s, s, ...)."""
-    inner = jax.vmap(jax.vmap(f, (0, None, None, None)), (0, None, None, None))
-    return jax.vmap(inner, (0, 0, 0, None))
+    """vmap f(x, R12, amp) over blocks and both point indices of x (C, s, s, ...)."""
+    inner = jax.vmap(jax.vmap(f, (0, None, None)), (0, None, None))
+    return jax.vmap(inner, (0, 0, 0))
 
 
 def _gather(ce: ContactElements, idx):
@@ -74,7 +83,7 @@ def _gather(ce: ContactElements, idx):
     return (ce.conn[safe], ce.R[safe], ce.radius[safe], ce.beta[safe])
 
 
-def block_weights_cg(ce: ContactElements, pairs):
+def arc_length_weights(ce: ContactElements, pairs):
     """W_ij = w1_i w2_j for real blocks, 0 for padding."""
     valid = (pairs[:, 0] < ce.n_elements)[:, None, None]
     e1 = jnp.minimum(pairs[:, 0], ce.n_elements - 1)
@@ -120,15 +129,14 @@ def _block_geometry(x, ce: ContactElements, pairs):
     return first, second, p1[:, :, None, :] - p2[:, None, :, :]
 
 
-def contact_energy(x, ce: ContactElements, cs: ContactSet, law: str):
+def contact_energy(x, ce: ContactElements, cs: ContactSet):
     """Total contact energy of the frozen blocks at control points x."""
-    phi, amplitude = _pair_law(law)
+    phi = _pair_law(cs.law)
 
     def add(total, part: ContactSet):
         (_, _, r1, b1), (_, _, r2, b2), r = _block_geometry(x, ce, part.pairs)
-        amp = amplitude(r1, r2, b1 * b2, part.params)
-        return total + jnp.sum(part.W * _over_pairs(phi)(jnp.sum(r * r, -1), r1 + r2, amp,
-                                                          part.params))
+        amp = part.law.amplitude(r1, r2, b1 * b2)
+        return total + jnp.sum(part.W * _over_pairs(phi)(jnp.sum(r * r, -1), r1 + r2, amp))
 
     return _over_chunks(ce, cs, add, jnp.zeros((), x.dtype))
 
@@ -136,11 +144,13 @@ def contact_energy(x, ce: ContactElements, cs: ContactSet, law: str):
 CHUNK = 4
 
 
-def contact_residual_tangent(x, ce: ContactElements, cs: ContactSet, law: str, n_dof: int):
-    """Global contact force (gradient) and tangent (Hessian) of the frozen blocks."""
-    zero = (jnp.zeros(n_dof, x.dtype), jnp.zeros((n_dof, n_dof), x.dtype))
-    return _over_chunks(ce, cs, lambda carry, part: _add_blocks(carry, x, ce, part, law),
-                        zero)
+def fold_block_forces(x, ce: ContactElements, cs: ContactSet, add, init):
+    """Fold ``add(carry, conn, f, k)`` over the frozen blocks, a chunk at a time: conn
+    (C, 2 n_loc) the control points of both elements of each block, f (C, 4 n_loc) the
+    gradient of its energy and k (C, 4 n_loc, 4 n_loc) its Hessian, in the order of
+    ``x[conn].ravel()``. The assembly scatters them (it alone knows the global dofs)."""
+    return _over_chunks(ce, cs, lambda carry, part: add(carry, *_block_forces(x, ce, part)),
+                        init)
 
 
 def _over_chunks(ce: ContactElements, cs: ContactSet, add, init):
@@ -159,7 +169,7 @@ def _over_chunks(ce: ContactElements, cs: ContactSet, add, init):
 
     def body(carry, chunk):
         pairs, W = chunk
-        part = ContactSet(pairs, block_weights_cg(ce, pairs) if W is None else W, cs.params)
+        part = ContactSet(pairs, arc_length_weights(ce, pairs) if W is None else W, cs.law)
         # padding blocks, and IPIP blocks without a selected pair, have zero weights
         active = jnp.any(part.W != 0.0)
         return jax.lax.cond(active, lambda c: add(c, part), lambda c: c, carry), None
@@ -167,20 +177,17 @@ def _over_chunks(ce: ContactElements, cs: ContactSet, add, init):
     return jax.lax.scan(body, init, chunks)[0]
 
 
-def _add_blocks(carry, x, ce: ContactElements, cs: ContactSet, law: str):
-    """Add the residual and tangent of the blocks of ``cs`` to carry = (res, K).
+def _block_forces(x, ce: ContactElements, cs: ContactSet):
+    """(conn, gradient, Hessian) of every block of ``cs`` (see :func:`fold_block_forces`).
 
     With A = 2 W f' and B = 4 W f'' per point pair, the pair Hessian is
     A I + B r r^T: its three distinct components (xx, xy, yy) are scalar fields over the
     pairs, so each element-pair tangent is three small products R1^T H_ab R2 (and the
     diagonal blocks R^T diag(row sums) R), never a (C, s, s, 2, 2) array.
     """
-    res, K = carry
-    phi, amplitude = _pair_law(law)
     (c1, R1, r1, b1), (c2, R2, r2, b2), r = _block_geometry(x, ce, cs.pairs)
-    f1, f2 = _over_pairs(_pair_derivatives(phi))(jnp.sum(r * r, -1), r1 + r2,
-                                                 amplitude(r1, r2, b1 * b2, cs.params),
-                                                 cs.params)
+    f1, f2 = _over_pairs(_pair_derivatives(_pair_law(cs.law)))(
+        jnp.sum(r * r, -1), r1 + r2, cs.law.amplitude(r1, r2, b1 * b2))
     A, B = 2.0 * cs.W * f1, 4.0 * cs.W * f2  # (C, s, s)
     G = A[..., None] * r  # gradient of each pair's energy in r
     rx, ry = r[..., 0], r[..., 1]
@@ -201,5 +208,4 @@ def _add_blocks(carry, x, ce: ContactElements, cs: ContactSet, law: str):
     k = jnp.concatenate([jnp.concatenate([K11, K12], 2),
                          jnp.concatenate([jnp.swapaxes(K12, 1, 2), K22], 2)], 1)
     f = jnp.concatenate([g1.reshape(C, m), g2.reshape(C, m)], axis=1)
-    dofs = jnp.concatenate([element_dofs(c1), element_dofs(c2)], axis=1)
-    return res.at[dofs].add(f), K.at[dofs[:, :, None], dofs[:, None, :]].add(k)
+    return jnp.concatenate([c1, c2], axis=1), f, k

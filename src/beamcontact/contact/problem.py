@@ -1,10 +1,11 @@
-"""The contact problem on the host: model choice, parameters, and the per-step frozen set.
+"""The contact problem on the host: the law, the contact points, and the per-step frozen set.
 
 Each step (or load step) the candidate blocks are found by the broad phase on the
-predicted configuration, with boxes grown by the interaction reach (coarse-grained:
-half the cutoff; IPIP: the largest radius) plus the motion expected in the step; the
-coarse-grained model then keeps only the blocks with a point pair closer than the cutoff
-plus twice the motion (:func:`near_blocks`); for IPIP the closest pairs are selected.
+predicted configuration, with boxes grown by the law's search reach (coarse-grained:
+half the cutoff; IPIP: the largest radius) plus the motion expected in the step; an
+integrated law then keeps only the blocks with a point pair closer than its interaction
+distance plus twice the motion (:func:`near_blocks`); for a closest-pair law (IPIP) the
+closest pairs are selected on the host.
 The set is frozen during the Newton loop so the tangent stays consistent; after the step
 the driver checks that no interacting block was missed (:func:`missed_blocks`; else the
 step is redone with a larger motion margin) and that the capacity was enough (else it
@@ -17,10 +18,30 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beamcontact.contact.blocks import CHUNK, ContactSet, block_distances, block_gaps, near_blocks
+from beamcontact.contact.blocks import (
+    CHUNK,
+    ContactSet,
+    FrozenContact,
+    block_distances,
+    block_gaps,
+    near_blocks,
+)
 from beamcontact.contact.broadphase import box_gap_lower_bound, candidate_pairs
+from beamcontact.contact.laws import ContactLaw
 from beamcontact.contact.points import ContactElements, contact_elements
 from beamcontact.contact.select import closest_pair_weights
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class ContactSearch:
+    """What a jitted step needs to find and check its own contact set: the contact points,
+    the law (its interaction distance and advancement slack) and the box growth
+    ``reach`` of the broad phase."""
+
+    elements: ContactElements
+    law: ContactLaw
+    reach: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,45 +49,46 @@ class ContactProblem:
     """Contact settings and element data (host side).
 
     Attributes:
-        law: "cg" or "ipip".
+        law: the contact law (:mod:`beamcontact.contact.laws`).
         elements: contact points of every element.
-        params: (penalty, k, m, q_reg, cutoff) as a float64 array.
-        reach: boxes grow by this (plus motion) in the broad phase.
-        interaction: centre-line distance beyond which a point pair contributes nothing
-            (coarse-grained: the cutoff; IPIP: inf, every box candidate is kept).
+        reach: boxes grow by this (plus motion) in the broad phase (the law's
+            ``search_reach`` for the largest radius).
         max_penetration: a step whose smallest gap is below -max_penetration is redone
             with a smaller time step.
-        advance_slack: distance added to a gap in the conservative advancement
-            (:mod:`beamcontact.contact.advance`): the regularisation gap q_reg for the
-            coarse-grained potential (below it the force is continued linearly, so a pair
-            can be pushed to q <= 0); max_penetration for IPIP, whose force acts only once
-            the beams overlap.
-        beam_of, local_element, n_elements: numbering used by the IPIP selection.
+        beam_of, local_element, n_elements: numbering used by the closest-pair selection.
     """
 
-    law: str
+    law: ContactLaw
     elements: ContactElements
-    params: jnp.ndarray
     reach: float
-    interaction: float
     max_penetration: float
-    advance_slack: float
     beam_of: np.ndarray
     local_element: np.ndarray
     n_elements: np.ndarray
 
+    @property
+    def interaction(self) -> float:
+        """Centre-line distance beyond which a point pair contributes nothing (inf: every
+        box candidate is kept)."""
+        return float(self.law.interaction_distance())
+
+    @property
+    def search(self) -> ContactSearch:
+        """The device-side data of the search (:class:`ContactSearch`)."""
+        return ContactSearch(self.elements, self.law, self.reach)
+
     def frozen_set(self, x_pred, motion: float, capacity: int) -> tuple[ContactSet, int]:
-        """Candidate blocks (and IPIP pair weights) for a step; returns (set, count)."""
-        if self.law == "cg":
-            pairs, count = _cg_set(x_pred, self.elements, jnp.asarray(self.reach),
+        """Candidate blocks (and closest-pair weights) for a step; returns (set, count)."""
+        if not self.law.closest_pairs:
+            pairs, count = _near_set(x_pred, self.elements, jnp.asarray(self.reach),
                                    jnp.asarray(self.interaction), jnp.asarray(motion),
                                    capacity=capacity)
-            return ContactSet(pairs, None, self.params), int(count)
+            return ContactSet(pairs, None, self.law), int(count)
         pairs, q, count = _candidate_gaps(x_pred, self.elements,
                                           jnp.asarray(self.reach + motion), capacity)
-        return self.ipip_set(pairs, q, motion), int(count)
+        return self.closest_pair_set(pairs, q, motion), int(count)
 
-    def ipip_set(self, pairs, q, motion: float) -> ContactSet:
+    def closest_pair_set(self, pairs, q, motion: float) -> ContactSet:
         """The IPIP set from the candidate blocks and their gaps: the closest pairs chosen
         on the host (:func:`closest_pair_weights`), blocks with a chosen pair first so
         that the kernels skip the rest chunk by chunk."""
@@ -74,7 +96,7 @@ class ContactProblem:
         W = closest_pair_weights(q, pairs, self.beam_of, self.local_element,
                                  self.n_elements, q_active=2.0 * motion)
         order = np.argsort(~W.any(axis=(1, 2)), kind="stable")
-        return ContactSet(pairs[order], W[order], self.params)
+        return ContactSet(pairs[order], W[order], self.law)
 
     @property
     def all_pairs(self) -> int:
@@ -124,15 +146,15 @@ def grown_capacity(count: int, limit: int | None = None) -> int:
     return power if limit is None else max(1, min(power, limit))
 
 
-def cg_candidates(x, ce, reach, interaction, motion, capacity: int):
-    """Coarse-grained blocks to freeze at the predicted x: the box candidates (boxes grown
+def near_candidates(x, ce, reach, interaction, motion, capacity: int):
+    """Blocks of an integrated law to freeze at the predicted x: the box candidates (grown
     by reach + motion) culled to those with a point pair closer than
     interaction + 2 motion; returns (pairs, number of box candidates)."""
     pairs, count = candidate_pairs(x, ce, reach + motion, capacity)
     return near_blocks(x, ce, pairs, interaction + 2.0 * motion), count
 
 
-_cg_set = jax.jit(cg_candidates, static_argnames=("capacity",))
+_near_set = jax.jit(near_candidates, static_argnames=("capacity",))
 
 
 def candidate_gaps(x, ce, margin, capacity: int):
@@ -166,27 +188,27 @@ def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: int):
 _after_step = jax.jit(missed_blocks, static_argnames=("capacity",))
 
 
+def freeze(contact: ContactProblem | None, cs: ContactSet | None) -> FrozenContact | None:
+    """The contact of one step for the assembly (None without contact)."""
+    return None if contact is None else FrozenContact(contact.elements, cs)
+
+
 def build_contact(case, disc) -> ContactProblem | None:
     """The contact problem of a validated case (None for contact.model = "none")."""
     c = case.contact
-    if c.model == "none" or len(disc.beams) < 2:
+    radii = [b.section.half_depth for b in disc.beams]
+    law = c.law(radii)
+    if law is None or len(disc.beams) < 2:
         return None
     betas = c.densities if len(c.densities) == len(disc.beams) else [c.densities[0]] * len(
         disc.beams)
     beam_pairs = None if c.pairs is None else [
         (case.beam_index(a), case.beam_index(b)) for a, b in c.pairs]
     ce = contact_elements(disc, c.segments_per_element, betas, beam_pairs)
-    radii = [b.section.half_depth for b in disc.beams]
-    q_reg = c.q_reg if c.q_reg is not None else 1e-3 * min(radii)
-    params = jnp.asarray(np.array([c.penalty, c.k, c.exponent, q_reg, c.cutoff], float))
-    reach = 0.5 * c.cutoff if c.model == "cg" else max(radii)
-    interaction = c.cutoff if c.model == "cg" else float("inf")
     beam_of = np.asarray(ce.beam)
     local, n_el = np.zeros_like(beam_of), np.zeros(len(disc.beams), dtype=np.int64)
     for e, b in enumerate(beam_of):
         local[e] = n_el[b]
         n_el[b] += 1
-    max_pen = c.max_penetration if c.max_penetration is not None else min(radii)
-    slack = q_reg if c.model == "cg" else max_pen
-    return ContactProblem(c.model, ce, params, reach, interaction, max_pen, slack, beam_of,
-                          local, n_el)
+    return ContactProblem(law, ce, float(law.search_reach(max(radii))),
+                          c.max_penetration_or(radii), beam_of, local, n_el)

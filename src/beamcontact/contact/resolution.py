@@ -37,7 +37,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.special import gammaln, kve
 
-from beamcontact.contact.laws import EXPONENT, Q_REG
+from beamcontact.contact.laws import CoarseGrained
 
 # rho = h / w above which the quadrature counts as under-resolved: at or below it the
 # energy washboard is under 1 % for every m >= 4.5, 0.14 % for m = 12 (module docstring;
@@ -178,12 +178,10 @@ def cg_resolution(w, radius, beam, q_min, m, q_reg=0.0, element_pairs=None) -> R
                       exponent=float(m))
 
 
-def contact_resolution(ce, params, q_min) -> Resolution:
-    """:func:`cg_resolution` for ``ContactElements`` ce and the law parameters
-    ``params`` = (penalty, k, m, q_reg, cutoff) of a coarse-grained contact problem."""
-    params = np.asarray(params, float)
+def contact_resolution(ce, law: CoarseGrained, q_min) -> Resolution:
+    """:func:`cg_resolution` for ``ContactElements`` ce and a coarse-grained law."""
     return cg_resolution(np.asarray(ce.w), np.asarray(ce.radius), np.asarray(ce.beam),
-                         q_min, m=params[EXPONENT], q_reg=params[Q_REG],
+                         q_min, m=float(law.exponent), q_reg=float(law.q_reg),
                          element_pairs=np.asarray(ce.pairs))
 
 

@@ -48,12 +48,14 @@ from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
 from beamcontact.contact.advance import approach_ratio
-from beamcontact.contact.blocks import ContactSet
+from beamcontact.contact.blocks import ContactSet, FrozenContact
 from beamcontact.contact.problem import (
     ContactProblem,
+    ContactSearch,
     candidate_gaps,
-    cg_candidates,
+    freeze,
     missed_blocks,
+    near_candidates,
 )
 from beamcontact.dynamics.hht import DynState, hht_step
 from beamcontact.solvers.newton import NewtonOptions
@@ -142,12 +144,12 @@ class DynamicResult:
     rejections: dict
 
 
-@partial(jax.jit, static_argnames=("law",))
-def diagnostics(state: DynState, model: Model, ce=None, cs=None, law: str = "none") -> dict:
+@jax.jit
+def diagnostics(state: DynState, model: Model, contact: FrozenContact | None = None) -> dict:
     """Energies (contact included) and linear momentum of a state."""
     e = energies(state.u, model, 1.0, state.load_state)
     e_kin, p = kinetic_energy_and_momentum(state.u, state.v, model)
-    e_con = contact_energy_of(state.u, model, ce, cs, law)
+    e_con = contact_energy_of(state.u, model, contact)
     return {**e, "E_contact": e_con, "E_kin": e_kin, "p_x": p[0], "p_y": p[1]}
 
 
@@ -158,8 +160,7 @@ def host_diagnostics(state: DynState, model: Model, contact: "ContactProblem | N
         d = {k: float(v) for k, v in diagnostics(state, model).items()}
         d["min_gap"] = float("nan")
     else:
-        d = {k: float(v) for k, v in diagnostics(state, model, contact.elements, cs,
-                                                  contact.law).items()}
+        d = {k: float(v) for k, v in diagnostics(state, model, freeze(contact, cs)).items()}
         d["min_gap"] = contact.min_gap(model.x_ref + state.u.reshape(-1, 2), cs)
     d["E_total"] = total_energy(d)
     return d
@@ -183,16 +184,17 @@ REPORT = ("converged", "iterations", "residual_norm", "initial_residual_norm", "
           "energy_floor", *DIAGNOSTICS)
 
 
-@partial(jax.jit, static_argnames=("max_iterations", "law", "capacity"))
+@partial(jax.jit, static_argnames=("max_iterations", "capacity"))
 def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, motion_factor,
-               ce=None, params=None, reach=0.0, interaction=0.0, slack=0.0, cs=None, *,
-               max_iterations: int, law: str = "none", capacity: int = 0):
+               search: ContactSearch | None = None, cs: ContactSet | None = None, *,
+               max_iterations: int, capacity: int = 0):
     """One attempt at a step of (at most) h, fused into a single dispatch.
 
-    Predictor; broad phase and culling of the candidate blocks to those within
-    ``interaction`` plus the motion (unless ``cs`` is given, as IPIP's host selection
-    does); the step shortened so that the predictor's approach of every candidate point
-    pair stays below ADVANCE_FRACTION of its gap plus ``slack``; the HHT-alpha Newton solve
+    Predictor; broad phase and culling of the candidate blocks to those within the law's
+    interaction distance plus the motion (unless ``cs`` is given, as the host's
+    closest-pair selection does); the step shortened so that the predictor's approach of
+    every candidate point pair stays below ADVANCE_FRACTION of its gap plus the law's
+    advancement slack; the HHT-alpha Newton solve
     (increment tolerance ``utol`` scaled by (h/dt_ref)^2: the acceleration is a
     displacement difference over beta h^2); the local error estimate; the post-step
     contact checks (the actual approach, a missed block, the smallest gap); diagnostics.
@@ -207,11 +209,15 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
     x_pred = _predicted_x(state, model, h)
     x0 = _x(state.u, model)
     h_used = h
-    if law != "none":
+    contact = None
+    if search is not None:
+        ce, reach = search.elements, search.reach
+        interaction, slack = search.law.interaction_distance(), search.law.advance_slack()
         if cs is None:
-            pairs, count = cg_candidates(x_pred, ce, reach, interaction, motion, capacity)
-            cs = ContactSet(pairs, None, params)
+            pairs, count = near_candidates(x_pred, ce, reach, interaction, motion, capacity)
+            cs = ContactSet(pairs, None, search.law)
             report["count"] = count
+        contact = FrozenContact(ce, cs)
         v, a = state.v.reshape(-1, 2), state.a.reshape(-1, 2)
         ratio = approach_ratio(x0, (h * v, 0.5 * h * h * a), ce, cs.pairs, slack)
         h_used = h * jnp.minimum(1.0, ADVANCE_FRACTION / jnp.maximum(ratio, 1e-300))
@@ -220,14 +226,14 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
     # increment test only stops Newton at the round-off of the positions
     utol_h = jnp.maximum(utol * jnp.minimum((h_used / dt_ref) ** 2, 1.0),
                          8.0 * jnp.finfo(x0.dtype).eps * jnp.max(jnp.abs(x0)))
-    new, res = hht_step(state, model, h_used, alpha, rtol, utol_h, max_iterations, ce, cs, law)
+    new, res = hht_step(state, model, h_used, alpha, rtol, utol_h, max_iterations, contact)
     beta = 0.25 * (1.0 - alpha) ** 2
     da = (new.a - state.a) * model.free
     report.update(converged=res.converged, iterations=res.iterations,
                   residual_norm=res.residual_norm,
                   initial_residual_norm=res.initial_residual_norm, h=h_used,
                   error=h_used**2 * jnp.abs(beta - 1.0 / 6.0) * jnp.max(jnp.abs(da)))
-    if law != "none":
+    if search is not None:
         x_new = _x(new.u, model)
         missing, count, gap = missed_blocks(x_new, ce, cs.pairs, reach, interaction, capacity)
         # a step that moved further from the predictor than the search margin may have
@@ -236,10 +242,10 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
         report.update(missing=missing | (deviation > motion + 1e-6 * reach), count_after=count,
                       min_gap=gap,
                       approach=approach_ratio(x0, (x_new - x0,), ce, cs.pairs, slack))
-    report.update(diagnostics(new, model, ce, cs, law))
+    report.update(diagnostics(new, model, contact))
     # energies of the two states are compared under the same frozen set; the jump from
     # the previous step's set to this one is accounted separately (E_set_change)
-    report["E_contact_before"] = contact_energy_of(state.u, model, ce, cs, law)
+    report["E_contact_before"] = contact_energy_of(state.u, model, contact)
     # what the converged solve can resolve: the forces times the increment tolerance, and
     # the kinetic energy times the velocity that increment implies (gamma du / (beta h))
     kinetic = jnp.maximum(report["E_kin"],
@@ -272,13 +278,13 @@ def _x(u, model: Model):
 
 
 @partial(jax.jit, static_argnames=("capacity",))
-def ipip_candidates(state: DynState, model: Model, h, motion_factor, ce, reach, *,
-                    capacity: int):
+def closest_pair_candidates(state: DynState, model: Model, h, motion_factor,
+                            search: ContactSearch, *, capacity: int):
     """Predictor, motion bound, candidate blocks and their point-pair gaps in one dispatch,
-    for IPIP's host selection: (pairs, gaps, count, motion)."""
+    for the host's closest-pair selection (IPIP): (pairs, gaps, count, motion)."""
     motion = motion_factor * _motion(state, h)
-    return (*candidate_gaps(_predicted_x(state, model, h), ce, reach + motion, capacity),
-            motion)
+    return (*candidate_gaps(_predicted_x(state, model, h), search.elements,
+                            search.reach + motion, capacity), motion)
 
 
 def next_step(h: float, error: float, tol: float, dt: float, after_rejection: bool,
@@ -342,18 +348,14 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
     set_jumps: list[float] = []  # |jump| of the attempts at this step refined for a set change
     compile_time = 0.0
     first = True
-    law = "none" if contact is None else contact.law
-    ce = None if contact is None else contact.elements
-    params = None if contact is None else contact.params
-    reach = 0.0 if contact is None else contact.reach
-    interaction = 0.0 if contact is None else contact.interaction
-    slack = 0.0 if contact is None else contact.advance_slack
+    search = None if contact is None else contact.search
     if contact is not None:
         capacity = min(capacity, contact.all_pairs)
     if account is None or account.last is None:
         cs0 = None if contact is None else contact.grown_set(_x(state.u, model), 0.0,
                                                              capacity)[0]
-        last = {k: float(v) for k, v in diagnostics(state, model, ce, cs0, law).items()}
+        last = {k: float(v) for k, v in diagnostics(state, model,
+                                                    freeze(contact, cs0)).items()}
         account = EnergyAccount(0.0 if account is None else account.E_dissipated,
                                 0.0 if account is None else account.E_set_change, last)
     e_dissipated, e_set_change, last = account.E_dissipated, account.E_set_change, account.last
@@ -362,19 +364,19 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
     while t_end - t > 1e-12 * max(dt, t_end):
         h = _step_size(t, t_end, h_try)
         cs = None
-        if law == "ipip":  # the closest pairs are chosen on the host
-            pairs, q, count, motion = jax.device_get(ipip_candidates(
-                state, model, np.float64(h), np.float64(motion_factor), ce, reach,
+        if contact is not None and contact.law.closest_pairs:  # chosen on the host
+            pairs, q, count, motion = jax.device_get(closest_pair_candidates(
+                state, model, np.float64(h), np.float64(motion_factor), search,
                 capacity=capacity))
             if count > capacity:
                 capacity = contact.capacity_for(int(count))
                 continue
-            cs = contact.ipip_set(pairs, q, float(motion))
+            cs = contact.closest_pair_set(pairs, q, float(motion))
         t0 = time.perf_counter()
         new, packed = fused_step(
             state, model, np.float64(h), alpha_arr, rtol, utol, np.float64(dt),
-            np.float64(motion_factor), ce, params, reach, interaction, slack, cs,
-            max_iterations=options.max_iterations, law=law, capacity=capacity)
+            np.float64(motion_factor), search, cs, max_iterations=options.max_iterations,
+            capacity=capacity)
         report = dict(zip(REPORT, np.asarray(packed).tolist(), strict=True))
         if first:
             compile_time = time.perf_counter() - t0

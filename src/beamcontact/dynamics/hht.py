@@ -26,6 +26,7 @@ from beamcontact.assembly.system import (
     residual_tangent_with_contact,
     update_load_state,
 )
+from beamcontact.contact.blocks import FrozenContact
 from beamcontact.solvers.newton import NewtonResult, newton
 
 # A time step whose Newton residual is still above the predictor's after this many
@@ -55,31 +56,31 @@ def hht_coefficients(alpha, dt):
     return jnp.stack([1.0 / (beta * dt**2), dt, (1.0 - 2.0 * beta) / (2.0 * beta), gamma])
 
 
-@partial(jax.jit, static_argnames=("law",))
-def initial_state(u0, v0, model: Model, load_state: LoadState, ce=None, cs=None,
-                  law: str = "none") -> DynState:
+@jax.jit
+def initial_state(u0, v0, model: Model, load_state: LoadState,
+                  contact: FrozenContact | None = None) -> DynState:
     """Consistent initial acceleration: F_inertia(u0, v0, a0) = -f_pot(u0) on free dofs."""
     free = model.free
     v0 = v0 * free
-    f_pot, _ = residual_tangent_with_contact(u0, model, 1.0, load_state, ce, cs, law)
+    f_pot, _ = residual_tangent_with_contact(u0, model, 1.0, load_state, contact)
     f0, M = inertia_force_and_mass(u0, v0, jnp.zeros_like(u0), model)
     r, M = apply_supports(f0 + f_pot, M, free)
     a0 = jnp.linalg.solve(M, -r)
     return DynState(jnp.asarray(0.0), u0, v0, a0, f_pot, load_state)
 
 
-@partial(jax.jit, static_argnames=("max_iterations", "law"))
+@partial(jax.jit, static_argnames=("max_iterations",))
 def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs, max_iterations: int,
-             ce=None, cs=None, law: str = "none") -> tuple[DynState, NewtonResult]:
+             contact: FrozenContact | None = None) -> tuple[DynState, NewtonResult]:
     """Advance by dt; returns the new state (meaningful only if converged) and Newton info.
 
-    ``ce``, ``cs`` and ``law`` are the contact elements, the frozen contact set and the
-    contact model ("none" without contact); contact forces enter f_pot (eq. 36).
+    ``contact``: the contact elements and the blocks frozen for this step (None without
+    contact); contact forces enter f_pot (eq. 36).
     """
     coeffs = hht_coefficients(alpha, dt)
 
     def residual_tangent(u):
-        r_p, K_p = residual_tangent_with_contact(u, model, 1.0, state.load_state, ce, cs, law)
+        r_p, K_p = residual_tangent_with_contact(u, model, 1.0, state.load_state, contact)
         r_i, K_i = inertia_residual_tangent(u, state.u, state.v, state.a, coeffs, model)
         r = r_i + (1.0 + alpha) * r_p - alpha * state.f_pot
         return (*apply_supports(r, K_i + (1.0 + alpha) * K_p, model.free), r_p)

@@ -11,7 +11,7 @@ import math
 import re
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import (
@@ -25,6 +25,9 @@ from pydantic import (
     model_validator,
 )
 from pydantic_core import PydanticCustomError
+
+if TYPE_CHECKING:
+    from beamcontact.contact.laws import ContactLaw
 
 
 class CaseError(ValueError):
@@ -274,6 +277,22 @@ class Contact(_Strict):
     pairs: Annotated[list[Annotated[list[str], BeforeValidator(_as_list),
                                     Field(min_length=2, max_length=2)]],
                      BeforeValidator(_as_list), Field(min_length=1)] | None = None
+
+    def law(self, radii: list[float]) -> "ContactLaw | None":
+        """The contact law of these settings for beams with half-depths ``radii`` (None
+        for model "none"): the one place where a law meets the case file."""
+        from beamcontact.contact.laws import CoarseGrained, Penalty
+
+        if self.model == "ipip":
+            return Penalty(self.penalty, self.max_penetration_or(radii))
+        if self.model == "cg":
+            q_reg = self.q_reg if self.q_reg is not None else 1e-3 * min(radii)
+            return CoarseGrained(self.k, self.exponent, q_reg, self.cutoff)
+        return None
+
+    def max_penetration_or(self, radii: list[float]) -> float:
+        """max_penetration, or its default: the smallest half-depth."""
+        return self.max_penetration if self.max_penetration is not None else min(radii)
 
 
 class Solver(_Strict):

@@ -27,7 +27,8 @@ from beamcontact.assembly.system import (
     residual_tangent_with_contact,
     update_load_state,
 )
-from beamcontact.contact.problem import ContactProblem
+from beamcontact.contact.blocks import FrozenContact
+from beamcontact.contact.problem import ContactProblem, freeze
 from beamcontact.solvers.newton import NewtonOptions, newton
 from beamcontact.statics.restraint import beam_modes, beam_ranges, singular_tangent_message
 
@@ -59,22 +60,23 @@ class StaticResult:
     compile_time: float
 
 
-@jax.jit(static_argnames=("max_iterations", "law"))
+@jax.jit(static_argnames=("max_iterations",))
 def _solve_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iterations,
-                ce=None, cs=None, law="none"):
+                contact: FrozenContact | None = None):
     def residual_tangent(u):
-        r, K = residual_tangent_with_contact(u, model, lam, load_state, ce, cs, law)
+        r, K = residual_tangent_with_contact(u, model, lam, load_state, contact)
         return (*apply_supports(r, K, model.free), None)
 
     return newton(residual_tangent, u0, max_iterations, tolerances)
 
 
-@jax.jit(static_argnames=("law",))
-def _energies(u, model, lam, state, ce=None, cs=None, law="none"):
-    return {**energies(u, model, lam, state),
-            "E_contact": contact_energy_of(u, model, ce, cs, law)}
+@jax.jit
+def _energies(u, model, lam, state, contact: FrozenContact | None = None):
+    return {**energies(u, model, lam, state), "E_contact": contact_energy_of(u, model, contact)}
+
+
 _update = jax.jit(update_load_state)
-_tangent = jax.jit(residual_tangent_with_contact, static_argnames=("law",))
+_tangent = jax.jit(residual_tangent_with_contact)
 
 
 def mechanism_message(model: Model, contact: ContactProblem | None, cs, load_state,
@@ -92,9 +94,8 @@ def mechanism_message(model: Model, contact: ContactProblem | None, cs, load_sta
         labels = [f"#{i + 1} (control points {a}-{b - 1})" for i, (a, b) in enumerate(ranges)]
     else:
         labels = [repr(name) for name in beam_names]
-    law = "none" if contact is None else contact.law
-    ce = None if contact is None else contact.elements
-    _, K = _tangent(jnp.zeros(model.n_dof), model, jnp.asarray(0.0), load_state, ce, cs, law)
+    _, K = _tangent(jnp.zeros(model.n_dof), model, jnp.asarray(0.0), load_state,
+                    freeze(contact, cs))
     return singular_tangent_message(np.asarray(K), free, x_ref, ranges, labels,
                                     contact=contact is not None)
 
@@ -128,8 +129,6 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
     steps = iterations = cutbacks = 0
     consecutive = 0
     compile_time = 0.0
-    law = "none" if contact is None else contact.law
-    ce = None if contact is None else contact.elements
     cs = None
     margin = 0.0 if contact is None else 0.5 * contact.reach
     if contact is not None:
@@ -159,7 +158,7 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
                 continue
         t0 = time.perf_counter()
         res = _solve_step(u, model, jnp.asarray(lam + dl), state, tol,
-                          max_iterations=options.max_iterations, ce=ce, cs=cs, law=law)
+                          max_iterations=options.max_iterations, contact=freeze(contact, cs))
         converged = bool(res.converged)
         if converged and contact is not None:
             x_new = model.x_ref + res.u.reshape(-1, 2)
@@ -203,7 +202,6 @@ def _step_values(u, model, lam, state, contact, cs) -> dict:
         d = {k: float(v) for k, v in _energies(u, model, lam, state).items()}
         d["min_gap"] = float("nan")
         return d
-    d = {k: float(v) for k, v in _energies(u, model, lam, state, contact.elements, cs,
-                                           contact.law).items()}
+    d = {k: float(v) for k, v in _energies(u, model, lam, state, freeze(contact, cs)).items()}
     d["min_gap"] = contact.min_gap(model.x_ref + u.reshape(-1, 2), cs)
     return d
