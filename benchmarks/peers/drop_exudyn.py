@@ -73,49 +73,45 @@ Usage
 
 from __future__ import annotations
 
-import argparse
-import csv
 import os
 import shutil
 import tempfile
 import time
 
+import _common as common
 import exudyn as exu
 import numpy as np
+from _common import AREA, INERTIA, MU, Y_FALL, E, G, R
 from exudyn.beams import GenerateBeamElementsAlongLine
 from exudyn.itemInterface import (
     MarkerBodyPosition,
     ObjectANCFCable2D,
 )
 
-G = 9.81
-R = 0.1
-RHO = 1000.0
-E = 1.0e7
-GAP = 2.76
-Y_FALL = GAP + 2 * R
-AREA = np.pi * R**2
-INERTIA = np.pi * R**4 / 4
-MU = RHO * AREA
+
+def cable_template() -> ObjectANCFCable2D:
+    """The ANCF cable element of both beams (the section and material above, no damping)."""
+    return ObjectANCFCable2D(
+        massPerLength=MU, bendingStiffness=E * INERTIA, axialStiffness=E * AREA,
+        bendingDamping=0.0, axialDamping=0.0,
+    )
+
+
+def add_lower_beam(mbs, n: int) -> dict:
+    """The lower beam: n cable elements from (0, 0) to (10, 0), end positions fixed (pinned:
+    the slopes are free), no gravity. Returns GenerateBeamElementsAlongLine's dict."""
+    return GenerateBeamElementsAlongLine(
+        mbs, [0.0, 0.0, 0.0], [10.0, 0.0, 0.0], n, cable_template(),
+        groundConstraintsStart=[1, 1, 0, 0], groundConstraintsEnd=[1, 1, 0, 0],
+    )
 
 
 def build(n_lower: int, n_fall: int, circles_per_element: int, k: float):
     SC = exu.SystemContainer()
     mbs = SC.AddSystem()
-    template = ObjectANCFCable2D(
-        massPerLength=MU, bendingStiffness=E * INERTIA, axialStiffness=E * AREA,
-        bendingDamping=0.0, axialDamping=0.0,
-    )
-    lower = GenerateBeamElementsAlongLine(
-        mbs, [0.0, 0.0, 0.0], [10.0, 0.0, 0.0], n_lower, template,
-        groundConstraintsStart=[1, 1, 0, 0], groundConstraintsEnd=[1, 1, 0, 0],
-    )
-    template = ObjectANCFCable2D(
-        massPerLength=MU, bendingStiffness=E * INERTIA, axialStiffness=E * AREA,
-        bendingDamping=0.0, axialDamping=0.0,
-    )
+    lower = add_lower_beam(mbs, n_lower)
     fall = GenerateBeamElementsAlongLine(
-        mbs, [3.0, Y_FALL, 0.0], [7.0, Y_FALL, 0.0], n_fall, template,
+        mbs, [3.0, Y_FALL, 0.0], [7.0, Y_FALL, 0.0], n_fall, cable_template(),
         gravity=[0.0, -G, 0.0],
     )
 
@@ -211,43 +207,27 @@ def _to_elements(nodes_q):
     return np.concatenate([a[:-1], a[1:]], axis=1)
 
 
-def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out", default="exudyn.csv", help="output CSV")
-    ap.add_argument("--dt", type=float, default=1.0e-4, help="time step [s]")
-    ap.add_argument("--t-end", type=float, default=1.2, help="end time [s]")
-    ap.add_argument("--dx", type=float, default=0.1, help="element length [m]")
-    ap.add_argument("--circle-spacing", type=float, default=0.05,
-                    help="spacing of the contact circles along the falling beam [m]")
-    ap.add_argument("--k", type=float, default=1.0e8,
-                    help="GeneralContact stiffness (force per length per penetration) [N/m^2]")
-    ap.add_argument("--spectral-radius", type=float, default=1.0,
-                    help="generalized-alpha rho_inf (1: trapezoidal rule, no damping)")
-    ap.add_argument("--full-newton", action="store_true",
-                    help="full Newton (Jacobian every iteration); default: Exudyn's modified "
-                         "Newton (Jacobian reused while it converges; same tolerances)")
-    ap.add_argument("--max-rows", type=int, default=2000, help="rows written at most")
-    ap.add_argument("--no-energy", action="store_true", help="skip the energy post-processing")
-    a = ap.parse_args(argv)
-
-    n_lower = int(round(10.0 / a.dx))
-    n_lower += n_lower % 2
-    n_fall = int(round(4.0 / a.dx))
-    cpe = max(1, int(round(4.0 / n_fall / a.circle_spacing)))
-    SC, mbs, lower, fall, n_circles, s = build(n_lower, n_fall, cpe, a.k)
-    nsteps = int(round(a.t_end / a.dt))
-    every = max(1, int(np.ceil((nsteps + 1) / a.max_rows)))
-
-    tmp = tempfile.mkdtemp(prefix="exudyn_drop_")
+# ---------------------------------------------------------------- solving, reading back
+def solve(mbs, t_end: float, dt: float, nsteps: int, every: int, prefix: str, *,
+          spectral_radius: float = 1.0, full_newton: bool = False,
+          abs_tol: float | None = None, discontinuous_iterations: int | None = None):
+    """Runs ``exu.SolveDynamic`` (generalized-alpha at ``spectral_radius``, fixed step dt,
+    modified Newton unless ``full_newton``, Exudyn's default Newton tolerances unless
+    ``abs_tol``, one solution row every ``every`` steps), prints its wall time and returns
+    the written times, coordinates and velocities (t, q, v; q and v: (rows, ODE2 size))."""
+    tmp = tempfile.mkdtemp(prefix=prefix)
     sol_file = os.path.join(tmp, "solution.txt")
     st = exu.SimulationSettings()
     ti = st.timeIntegration
-    ti.endTime = a.t_end
+    ti.endTime = t_end
     ti.numberOfSteps = nsteps
-    ti.generalizedAlpha.spectralRadius = a.spectral_radius
+    ti.generalizedAlpha.spectralRadius = spectral_radius
     ti.generalizedAlpha.computeInitialAccelerations = True
-    ti.newton.useModifiedNewton = not a.full_newton
-    ti.discontinuous.maxIterations = 8
+    ti.newton.useModifiedNewton = not full_newton
+    if abs_tol is not None:
+        ti.newton.absoluteTolerance = abs_tol
+    if discontinuous_iterations is not None:
+        ti.discontinuous.maxIterations = discontinuous_iterations
     ti.adaptiveStep = False
     ti.verboseMode = 0
     st.linearSolver.solverType = exu.LinearSolverType.EigenSparse
@@ -255,7 +235,7 @@ def main(argv=None) -> None:
     f = st.solution.file
     f.write = True
     f.name = sol_file
-    f.writePeriod = every * a.dt * (1 - 1e-6)  # one row every `every` steps
+    f.writePeriod = every * dt * (1 - 1e-6)  # one row every `every` steps
     st.solution.precision = 12
     f.export.velocities = True
     f.export.accelerations = False
@@ -265,11 +245,6 @@ def main(argv=None) -> None:
     st.solution.sensors.active = False
     st.show.statistics = False
 
-    print(f"Exudyn {exu.__version__} drop: ANCFCable2D elements lower/fall = "
-          f"{n_lower}/{n_fall} (dx = {a.dx} m), dt = {a.dt}, steps = {nsteps}, "
-          f"t_end = {a.t_end}, generalized-alpha spectralRadius = {a.spectral_radius}, "
-          f"GeneralContact: {n_circles} circles (spacing {s:g} m) vs lower cable, "
-          f"k = {a.k:g} N/m^2, no damping, no friction")
     t0 = time.perf_counter()
     ok = exu.SolveDynamic(mbs, st, solverType=exu.DynamicSolverType.GeneralizedAlpha,
                           showHints=True)
@@ -278,15 +253,49 @@ def main(argv=None) -> None:
 
     data = np.loadtxt(sol_file, comments="#", delimiter=",")
     shutil.rmtree(tmp, ignore_errors=True)
-    t = data[:, 0]
     n2 = mbs.systemData.ODE2Size()
-    q_all = data[:, 1:1 + n2]
-    v_all = data[:, 1 + n2:1 + 2 * n2]
-    def idx(nodes):  # ODE2 indices of the nodes' 4 coordinates (x, y, x', y')
-        return np.array([mbs.GetNodeODE2Index(n) + k for n in nodes for k in range(4)])
-    il, iff = idx(lower["nodes"]), idx(fall["nodes"])
-    ref_l = np.array([mbs.GetNodeParameter(n, "referenceCoordinates") for n in lower["nodes"]])
-    ref_f = np.array([mbs.GetNodeParameter(n, "referenceCoordinates") for n in fall["nodes"]])
+    return data[:, 0], data[:, 1:1 + n2], data[:, 1 + n2:1 + 2 * n2]
+
+
+def node_dofs(mbs, nodes):
+    """ODE2 indices of the nodes' 4 coordinates (x, y, x', y') and their reference values
+    (n_nodes, 4)."""
+    idx = np.array([mbs.GetNodeODE2Index(n) + k for n in nodes for k in range(4)])
+    ref = np.array([mbs.GetNodeParameter(n, "referenceCoordinates") for n in nodes])
+    return idx, ref
+
+
+def main(argv=None) -> None:
+    ap = common.parser(__doc__, "exudyn.csv", dt=1.0e-4, dx=0.1)
+    ap.add_argument("--circle-spacing", type=float, default=0.05,
+                    help="spacing of the contact circles along the falling beam [m]")
+    ap.add_argument("--k", type=float, default=1.0e8,
+                    help="GeneralContact stiffness (force per length per penetration) [N/m^2]")
+    ap.add_argument("--spectral-radius", type=float, default=1.0,
+                    help="generalized-alpha rho_inf (1: trapezoidal rule, no damping)")
+    ap.add_argument("--full-newton", action="store_true",
+                    help="full Newton (Jacobian every iteration); default: Exudyn's modified "
+                         "Newton (Jacobian reused while it converges; same tolerances)")
+    common.add_max_rows(ap)
+    ap.add_argument("--no-energy", action="store_true", help="skip the energy post-processing")
+    a = ap.parse_args(argv)
+
+    n_lower = common.even_elements(10.0, a.dx)
+    n_fall = int(round(4.0 / a.dx))
+    cpe = max(1, int(round(4.0 / n_fall / a.circle_spacing)))
+    SC, mbs, lower, fall, n_circles, s = build(n_lower, n_fall, cpe, a.k)
+    nsteps, every = common.sampling(a.t_end, a.dt, a.max_rows)
+
+    print(f"Exudyn {exu.__version__} drop: ANCFCable2D elements lower/fall = "
+          f"{n_lower}/{n_fall} (dx = {a.dx} m), dt = {a.dt}, steps = {nsteps}, "
+          f"t_end = {a.t_end}, generalized-alpha spectralRadius = {a.spectral_radius}, "
+          f"GeneralContact: {n_circles} circles (spacing {s:g} m) vs lower cable, "
+          f"k = {a.k:g} N/m^2, no damping, no friction")
+    t, q_all, v_all = solve(mbs, a.t_end, a.dt, nsteps, every, "exudyn_drop_",
+                            spectral_radius=a.spectral_radius, full_newton=a.full_newton,
+                            discontinuous_iterations=8)
+    il, ref_l = node_dofs(mbs, lower["nodes"])
+    iff, ref_f = node_dofs(mbs, fall["nodes"])
     mid = n_lower // 2
     a_uy = q_all[:, il].reshape(len(t), -1, 4)[:, mid, 1]  # displacement coordinates
 
@@ -310,11 +319,8 @@ def main(argv=None) -> None:
         ec = _contact_energy(circ, pts, ds, a.k)
         e_tot[j] = el + ef + ec
 
-    with open(a.out, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["t", "A_uy", "E_total", "yc_fall"])
-        for r in zip(t, a_uy, e_tot, yc, strict=True):
-            w.writerow([f"{r[0]:.6g}", f"{r[1]:.9g}", f"{r[2]:.9g}", f"{r[3]:.9g}"])
+    common.write_csv(a.out, ["t", "A_uy", "E_total", "yc_fall"],
+                     zip(t, a_uy, e_tot, yc, strict=True), [".6g", ".9g", ".9g", ".9g"])
     i = int(np.argmin(a_uy))
     print(f"min A_uy = {a_uy[i]:.4f} m at t = {t[i]:.4f} s", end="")
     if not a.no_energy:

@@ -71,20 +71,11 @@ Usage
 
 from __future__ import annotations
 
-import argparse
-import csv
-import time
-
+import _common as common
 import elastica as ea
 import numpy as np
+from _common import RHO, Y_FALL, E, G, R
 from numba import njit
-
-G = 9.81
-R = 0.1
-RHO = 1000.0
-E = 1.0e7
-GAP = 2.76
-Y_FALL = GAP + 2 * R  # axis of the falling beam
 
 
 @njit(cache=True)
@@ -224,12 +215,10 @@ def energy(lower, fall, cont, t):
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out", default="pyelastica.csv", help="output CSV")
-    ap.add_argument("--dt", type=float, default=1.0e-4, help="time step [s]")
-    ap.add_argument("--t-end", type=float, default=1.2, help="end time [s]")
-    ap.add_argument("--dx", type=float, default=0.025, help="element length [m]")
-    ap.add_argument("--contact", choices=["penalty", "builtin"], default="penalty")
+    ap = common.parser(__doc__, "pyelastica.csv", dt=1.0e-4, dx=0.025)
+    ap.add_argument("--contact", choices=["penalty", "builtin"], default="penalty",
+                    help="penalty: the conservative line penalty of this script; builtin: "
+                         "PyElastica's RodRodContact (see the module docstring)")
     ap.add_argument("--k-line", type=float, default=1.0e8,
                     help="penalty stiffness per unit contact length [N/m^2]")
     ap.add_argument("--k-builtin", type=float, default=1.0e6,
@@ -240,18 +229,15 @@ def main(argv=None) -> None:
                          "smaller dt)")
     ap.add_argument("--rotary-factor", type=float, default=1.0,
                     help="study: scale the rotary inertia (small -> none; needs smaller dt)")
-    ap.add_argument("--max-rows", type=int, default=2000, help="rows written at most")
+    common.add_max_rows(ap)
     a = ap.parse_args(argv)
 
-    n_lower = int(round(10.0 / a.dx))
+    n_lower = common.even_elements(10.0, a.dx)
     n_fall = int(round(4.0 / a.dx))
-    if n_lower % 2:
-        n_lower += 1
     sim, lower, fall, cont = build(n_lower, n_fall, a.contact, a.k_line, a.k_builtin,
                                    a.shear_factor, a.rotary_factor)
     mid = n_lower // 2
-    nsteps = int(round(a.t_end / a.dt))
-    every = max(1, int(np.ceil((nsteps + 1) / a.max_rows)))
+    nsteps, every = common.sampling(a.t_end, a.dt, a.max_rows)
     stepper = ea.PositionVerlet()
 
     print(f"PyElastica drop: elements lower/fall = {n_lower}/{n_fall} (dx = {a.dx} m), "
@@ -260,7 +246,6 @@ def main(argv=None) -> None:
              else f"k = {a.k_builtin:g} N/m, nu = 0")
           + f", G = {a.shear_factor:g} * E/3, rotary inertia x {a.rotary_factor:g}")
     rows = []
-    t = np.float64(0.0)
 
     def record(t):
         rows.append((float(t), float(lower.position_collection[1, mid]),
@@ -270,24 +255,12 @@ def main(argv=None) -> None:
     # warm-up compile of the numba kernels outside the timing
     if cont is not None:
         cont.energy_and_forces(fall, lower, False)
-    record(t)
-    wall = 0.0  # time spent in the step loop, without the (slow, Python) energy sampling
-    t_all = time.perf_counter()
-    for n in range(1, nsteps + 1):
-        t0 = time.perf_counter()
-        t = stepper.step(sim, t, a.dt)
-        wall += time.perf_counter() - t0
-        if n % every == 0 or n == nsteps:
-            record(t)
-    t_all = time.perf_counter() - t_all
+    record(np.float64(0.0))
+    wall, t_all = common.step_loop(lambda t: stepper.step(sim, t, a.dt), np.float64(0.0),
+                                   nsteps, every, record)
     arr = np.array(rows)
-    if not np.all(np.isfinite(arr)) or np.abs(arr[:, 1]).max() > 10.0:
-        raise SystemExit("unstable run (non-finite or exploding state): the step is too large")
-    with open(a.out, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["t", "A_uy", "E_total", "yc_fall"])
-        for r in rows:
-            w.writerow([f"{r[0]:.6g}", f"{r[1]:.9g}", f"{r[2]:.9g}", f"{r[3]:.9g}"])
+    common.check_stable(arr, 10.0)
+    common.write_csv(a.out, ["t", "A_uy", "E_total", "yc_fall"], rows, [".6g", ".9g", ".9g", ".9g"])
     print(f"wall time: step loop {wall:.2f} s; with energy/output sampling {t_all:.2f} s")
     print(f"min A_uy = {arr[:, 1].min():.4f} m at t = {arr[arr[:, 1].argmin(), 0]:.4f} s; "
           f"E_total drift max|E-E0| = {np.abs(arr[:, 2] - arr[0, 2]).max():.3g} J "
