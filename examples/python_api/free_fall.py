@@ -37,7 +37,7 @@ def free_fall_case(t_end: float = 3.0) -> "bc.Case":
                     degree=4, elements=6, continuity=1, section=section, material=material,
                     gravity=True),
         ],
-        contact=bc.Contact(model="cg", segments_per_element=20, exponent=12, k=5.0e-25,
+        contact=bc.Contact(model="cg", segments_per_element=60, exponent=12, k=5.0e-25,
                            densities=[1.0, 1.0], cutoff=0.3),
         output=bc.Output(points=[bc.OutputPoint(name="A", beam="lower", at=0.5)],
                          vtk_interval=0.02),
