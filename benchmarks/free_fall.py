@@ -23,11 +23,12 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
-from beamcontact.assembly.build import build_model  # noqa: E402
 from beamcontact.assembly.model import initial_load_state  # noqa: E402
 from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
-from beamcontact.contact.problem import build_contact, freeze  # noqa: E402
-from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities  # noqa: E402
+from beamcontact.build.contact import build_contact  # noqa: E402
+from beamcontact.build.model import build_model, uniform_velocities  # noqa: E402
+from beamcontact.contact.problem import freeze  # noqa: E402
+from beamcontact.dynamics.driver import solve_dynamic  # noqa: E402
 from beamcontact.dynamics.hht import initial_state  # noqa: E402
 from beamcontact.io.case import parse_case  # noqa: E402
 from beamcontact.runner import step_control  # noqa: E402
@@ -56,7 +57,7 @@ def run(model_name: str, t_end: float) -> None:
     cs0, cap = contact.grown_set(model.x_ref, 0.0, case.contact.capacity)
     state = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model),
                           freeze(contact, cs0))
-    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, 0.0, case.solver.utol)
+    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, case.solver.utol)
     kept = {}
 
     def keep(s):

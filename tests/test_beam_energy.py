@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from _builders import beam, static_case
 
-from beamcontact.assembly.build import build_model
 from beamcontact.assembly.model import initial_load_state
 from beamcontact.assembly.system import energies as _energies
 from beamcontact.assembly.system import potential_residual_tangent as _prt
+from beamcontact.build.model import build_model
 
 energies = jax.jit(_energies)
 potential_residual_tangent = jax.jit(_prt)

@@ -17,7 +17,7 @@ import pytest
 from _builders import beam
 from scipy.integrate import quad
 
-from beamcontact.assembly.build import build_model
+from beamcontact.build.model import build_model
 from beamcontact.contact.blocks import ContactSet, contact_energy
 from beamcontact.contact.laws import CoarseGrained, cg_constant
 from beamcontact.contact.points import contact_elements

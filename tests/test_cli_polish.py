@@ -17,8 +17,8 @@ from rich.text import Text
 from typer.testing import CliRunner
 
 import beamcontact
-from beamcontact.cli import _SweepProgress, app
-from beamcontact.progress import ProgressInfo, progress_bar
+from beamcontact.cli import app
+from beamcontact.progress import ProgressInfo, SweepProgress, progress_bar
 
 WIDTH = 80
 LONG_TITLE = "Free fall of an elastic beam onto another beam, [solver] study " * 3
@@ -165,7 +165,7 @@ def test_importing_progress_does_not_import_rich():
 def test_sweep_progress_fits_in_80_columns():
     long_name = "beams.upper.material.E=1e9_contact.penalty=1e6_flag=[true]_alpha=-0.33"
     out = io.StringIO()
-    display = _SweepProgress(3, console=Console(file=out, width=110, force_terminal=True))
+    display = SweepProgress(3, console=Console(file=out, width=110, force_terminal=True))
     with display:
         events = display.events()
         events.started(2, 1)

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from _builders import beam
 
-from beamcontact.assembly.build import build_model, point_sampler
 from beamcontact.assembly.model import initial_load_state
 from beamcontact.assembly.system import contact_residual_tangent
+from beamcontact.build.contact import build_contact
+from beamcontact.build.model import build_model, point_sampler, uniform_velocities
 from beamcontact.contact.blocks import (
     FrozenContact,
     arc_length_weights,
@@ -17,9 +18,8 @@ from beamcontact.contact.blocks import (
 )
 from beamcontact.contact.broadphase import candidate_pairs, element_boxes
 from beamcontact.contact.laws import cg_constant, cg_potential
-from beamcontact.contact.problem import build_contact
 from beamcontact.contact.select import closest_pair_weights
-from beamcontact.dynamics.driver import solve_dynamic, uniform_velocities
+from beamcontact.dynamics.driver import solve_dynamic
 from beamcontact.dynamics.hht import initial_state
 from beamcontact.io.case import CaseError, parse_case
 from beamcontact.runner import step_control

@@ -8,11 +8,12 @@ import scipy.linalg
 from _builders import beam, bending_stiffness, static_case
 from scipy.integrate import solve_ivp
 
-from beamcontact.assembly.build import build_model, point_sampler
 from beamcontact.assembly.inertia import inertia_force_and_mass
 from beamcontact.assembly.model import initial_load_state
 from beamcontact.assembly.system import potential_residual_tangent
-from beamcontact.dynamics.driver import StepControl, solve_dynamic
+from beamcontact.build.model import build_model, point_sampler
+from beamcontact.dynamics.control import StepControl
+from beamcontact.dynamics.driver import solve_dynamic
 from beamcontact.dynamics.hht import initial_state
 from beamcontact.solvers.newton import NewtonOptions
 
@@ -187,7 +188,7 @@ def test_pinned_pinned_frequencies_with_rotary_inertia(mode):
     model, disc = _cantilever(radius=a, elements=16, L=L, supports=("pinned", "pinned"),
                               gravity=(0.0, 0.0))
     k = mode * np.pi / L
-    A, I = np.pi * a**2, np.pi * a**4 / 4
+    A, I = np.pi * a**2, np.pi * a**4 / 4  # noqa: E741 (I: second moment of area)
     w_eb = np.sqrt(E * I * k**4 / (rho * A))
     w_rayleigh = w_eb / np.sqrt(1 + I / A * k**2)
     T = 2 * np.pi / w_rayleigh
@@ -233,7 +234,7 @@ def test_stiff_pinned_beam_swings_like_rigid_pendulum():
                        gravity=(0.0, -g))
     model, disc = build_model(case)
     steps, _ = _simulate(model, disc, 0.8, 1e-3, 0.0)
-    A, I = np.pi * a**2, np.pi * a**4 / 4
+    A, I = np.pi * a**2, np.pi * a**4 / 4  # noqa: E741 (I: second moment of area)
     m, I_O = rho * A * L, rho * A * L**3 / 3 + rho * I * L
     sol = solve_ivp(lambda _, y: [y[1], m * g * L / 2 * np.cos(y[0]) / I_O], (0, 0.8),
                     [0.0, 0.0], rtol=1e-12, atol=1e-12, dense_output=True)
@@ -245,7 +246,7 @@ def test_stiff_pinned_beam_swings_like_rigid_pendulum():
 
 def test_per_beam_gravity_switch_and_initial_velocity():
     """Beam "a" falls; beam "b" has gravity off and drifts at its initial velocity."""
-    from beamcontact.dynamics.driver import uniform_velocities
+    from beamcontact.build.model import uniform_velocities
 
     g, vel = 9.81, (0.4, -1.5)
     case = static_case([beam("a", line=([0, 0], [1, 0]), degree=3, elements=3),

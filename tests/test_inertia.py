@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 from _builders import beam, static_case
 
-from beamcontact.assembly.build import build_model
 from beamcontact.assembly.inertia import inertia_force_and_mass, kinetic_energy_and_momentum
 from beamcontact.beam.inertia import element_inertia_force, element_kinetic_energy
+from beamcontact.build.model import build_model
 
 
 def _element():

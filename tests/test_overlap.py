@@ -5,7 +5,7 @@ import pytest
 from _builders import beam, static_case
 
 import beamcontact.contact.overlap as overlap
-from beamcontact.assembly.build import build_model
+from beamcontact.build.model import build_model
 from beamcontact.contact.overlap import describe, initial_overlaps
 from beamcontact.contact.points import contact_elements
 

@@ -15,7 +15,7 @@ from _builders import beam, bending_stiffness, static_case
 from scipy.integrate import solve_bvp
 from scipy.optimize import fsolve
 
-from beamcontact.assembly.build import build_model, point_sampler
+from beamcontact.build.model import build_model, point_sampler
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
 
@@ -324,7 +324,7 @@ def _restraint_case(supports, load_at=0.5, contact=None, upper=None):
     ([{"at": "end", "type": "clamped"}], 0),
     ([{"at": "start", "type": "pinned"}, {"at": "end", "type": "pinned"}], 0)])
 def test_rigid_modes_left_free_by_the_supports(supports, modes):
-    from beamcontact.assembly.build import discretize, supported_dofs
+    from beamcontact.build.model import discretize, supported_dofs
     from beamcontact.statics.restraint import rigid_modes, unrestrained_modes
 
     case = _restraint_case(supports)
@@ -371,7 +371,7 @@ def _contact_pair(gap, upper_supports=(), lower_supports=None):
 
 def _mechanism(case):
     from beamcontact.assembly.model import initial_load_state
-    from beamcontact.contact.problem import build_contact
+    from beamcontact.build.contact import build_contact
     from beamcontact.statics.driver import mechanism_message
 
     model, disc = build_model(case)

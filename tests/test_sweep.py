@@ -17,13 +17,13 @@ from test_free_fall import _small_drop
 
 from beamcontact.io.case import CaseError, parse_case
 from beamcontact.runner import run_case
-from beamcontact.sweep import (
+from beamcontact.sweep import run_sweep
+from beamcontact.sweep_settings import (
     Setting,
     apply_setting,
     expand,
     format_value,
     parse_setting,
-    run_sweep,
 )
 
 REPO = Path(__file__).resolve().parents[1]

@@ -148,8 +148,8 @@ def main(argv=None) -> None:
     import jax.numpy as jnp
     from threadpoolctl import threadpool_limits
 
-    from beamcontact.assembly.build import build_model, point_sampler
     from beamcontact.assembly.model import initial_load_state
+    from beamcontact.build.model import build_model, point_sampler
     from beamcontact.dynamics.driver import solve_dynamic
     from beamcontact.dynamics.hht import initial_state
     from beamcontact.io.case import parse_case
@@ -163,7 +163,7 @@ def main(argv=None) -> None:
     info = disc.beam("lower")
     v_cp, proj_err = sine_velocities(info, a.V, np.asarray(model.free))
     idx, Nmid = point_sampler(disc, "lower", 0.5)
-    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, 0.0, case.solver.utol)
+    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, case.solver.utol)
     control = step_control(case)
     settings = effective_settings(case)
     print(f"beamcontact vibration: V = {a.V} m/s, {a.elements} quartic C^{a.continuity} elements "
@@ -185,7 +185,8 @@ def main(argv=None) -> None:
         u0 = jnp.zeros(model.n_dof)
         state = initial_state(u0, jnp.asarray(v_cp.ravel()), model,
                               initial_load_state(model))
-        from beamcontact.dynamics.driver import diagnostics, total_energy
+        from beamcontact.dynamics.control import total_energy
+        from beamcontact.dynamics.step import diagnostics
         d0 = {k: float(v) for k, v in diagnostics(state, model).items()}
         rows.append((0.0, 0.0, total_energy(d0), 0.0))
         t0 = time.perf_counter()

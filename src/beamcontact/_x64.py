@@ -1,4 +1,5 @@
-"""Float64 switch: checked by the library, set only by entry points (CLI, examples, tests).
+"""Float64: the switch (set by entry points: CLI, simulate, examples, tests), its check, and
+the conversion of host values to float64 arrays.
 
 JAX is imported lazily so that validating a case (``beamcontact check``) stays fast.
 """
@@ -20,3 +21,11 @@ def require_x64() -> None:
             "beamcontact needs float64: set JAX_ENABLE_X64=1 or call "
             "beamcontact.enable_x64() before creating arrays"
         )
+
+
+def as_float(x):
+    """Host value -> float64 JAX array (never a silent float32)."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    return jnp.asarray(np.asarray(x, dtype=np.float64))

@@ -9,7 +9,7 @@ that may touch another is left to the solver, which stops with exit code 1 if co
 does not hold it either (statics/restraint.py).
 
 Progress is drawn within 80 columns at any terminal width (progress.progress_bar for a run,
-_SweepProgress for a sweep). Help texts are rich markup: a literal ``[`` that could start a
+progress.SweepProgress for a sweep). Help texts are rich markup: a literal ``[`` that could start a
 tag is written ``\\[`` (e.g. ``\\[solver]``), or the markup renderer swallows it.
 """
 
@@ -76,8 +76,8 @@ def _check_static_restraints(parsed) -> None:
     """Reject a static case with a beam that nothing can hold (statics/restraint.py)."""
     if parsed.analysis.kind != "static":
         return
-    from beamcontact.assembly.build import discretize
-    from beamcontact.statics.restraint import static_mechanisms
+    from beamcontact.build.checks import static_mechanisms
+    from beamcontact.build.model import discretize
 
     try:
         disc = discretize(parsed)
@@ -286,7 +286,7 @@ def sweep(
     import tomllib
 
     from beamcontact.io.case import CaseError
-    from beamcontact.sweep import expand, parse_setting
+    from beamcontact.sweep_settings import expand, parse_setting
 
     case = bundled_case() if case is None else case
     parsed, text = _load(case)
@@ -318,10 +318,11 @@ def _sweep_with_progress(members, out: Path, points: list[str], workers: int,
     are kept, and running the same command again goes on from there).
     """
     from beamcontact.io.case import CaseError
+    from beamcontact.progress import SweepProgress
     from beamcontact.sweep import run_sweep
 
     try:
-        with _SweepProgress(len(members), show) as progress:
+        with SweepProgress(len(members), show) as progress:
             return run_sweep(members, out, points, workers=workers, scheduler=scheduler,
                              events=progress.events())
     except CaseError as exc:
@@ -341,77 +342,6 @@ def _report_sweep(rows: list[dict], out: Path) -> None:
         typer.echo(f"  {r['run']}: {r['status']}: {r['message']}", err=True)
     if failed:
         raise typer.Exit(1)
-
-
-def _tail(text: str, width: int) -> str:
-    """``text`` cut to ``width`` characters from the left ("…" + its end): sweep members'
-    names differ mostly in their last parameter, so the end is the part worth keeping."""
-    return text if len(text) <= width else "\u2026" + text[len(text) - width + 1:]
-
-
-class _SweepProgress:
-    """Rich progress across runs: one bar for the sweep, one per run in flight.
-
-    Every column has a fixed width (run names are cut from the left), so each line takes at
-    most 78 columns whatever the terminal width: a line wider than the terminal wraps and is
-    then reprinted at every refresh. Lines are redrawn at most four times a second.
-    """
-
-    NAME_WIDTH, BAR_WIDTH, INFO_WIDTH = 22, 16, 30  # + elapsed 7 + 3 spaces = 78
-
-    def __init__(self, total: int, show: bool = True, console=None):
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-        from rich.table import Column
-
-        def text(field: str, width: int) -> TextColumn:
-            return TextColumn(field, markup=False, table_column=Column(
-                width=width, no_wrap=True, overflow="ellipsis"))
-
-        self.bar = Progress(text("{task.description}", self.NAME_WIDTH),
-                            BarColumn(bar_width=self.BAR_WIDTH),
-                            text("{task.fields[info]}", self.INFO_WIDTH), TimeElapsedColumn(),
-                            console=console, refresh_per_second=4, disable=not show)
-        self.total, self.runs, self.done, self.failed = total, {}, set(), 0
-        self.sweep = self.bar.add_task("sweep", total=total, info="")
-
-    def __enter__(self):
-        self.bar.__enter__()
-        return self
-
-    def __exit__(self, *exc):
-        return self.bar.__exit__(*exc)
-
-    def started(self, todo: int, done: int) -> None:
-        """Show how many runs were complete before and how many are to run."""
-        self.bar.update(self.sweep, completed=done, info=f"{done} done before, {todo} to run")
-
-    def progress(self, name: str, fraction: float, info: str) -> None:
-        """Move the bar of run ``name`` (adding it on its first event); ``info`` is the
-        runner's ProgressInfo.text() forwarded by the worker."""
-        if name in self.done:  # a late event of a finished run
-            return
-        if name not in self.runs:
-            label = "  " + _tail(name, self.NAME_WIDTH - 2)
-            self.runs[name] = self.bar.add_task(label, total=1.0, info="")
-        self.bar.update(self.runs[name], completed=fraction, info=info)
-
-    def finished(self, member, summary: dict) -> None:
-        """Drop the run's bar, advance the sweep's, and print the run's status once."""
-        self.done.add(member.name)
-        if member.name in self.runs:
-            self.bar.remove_task(self.runs.pop(member.name))
-        self.failed += summary.get("status") != "completed"
-        self.bar.advance(self.sweep)
-        self.bar.update(self.sweep, info=f"{self.failed} failed" if self.failed else "")
-        self.bar.console.print(f"{member.name}: {summary.get('status')}"
-                               f" ({summary.get('wall_time_s') or 0:.1f} s)",
-                               markup=False, highlight=False)
-
-    def events(self):
-        """The callbacks that run_sweep calls (SweepEvents) drawing on this display."""
-        from beamcontact.sweep import SweepEvents
-
-        return SweepEvents(self.started, self.progress, self.finished)
 
 
 @app.command()

@@ -127,3 +127,87 @@ def progress_bar(title: str, enabled: bool = True, console: Any = None) -> Itera
 
     with bar:
         yield show
+
+
+def _tail(text: str, width: int) -> str:
+    """``text`` cut to ``width`` characters from the left ("…" + its end): sweep members'
+    names differ mostly in their last parameter, so the end is the part worth keeping."""
+    return text if len(text) <= width else "\u2026" + text[len(text) - width + 1:]
+
+
+class SweepProgress:
+    """Rich progress across runs: one bar for the sweep, one per run in flight.
+
+    Every column has a fixed width (run names are cut from the left), so each line takes at
+    most 78 columns whatever the terminal width: a line wider than the terminal wraps and is
+    then reprinted at every refresh. Lines are redrawn at most four times a second.
+    """
+
+    NAME_WIDTH, BAR_WIDTH, INFO_WIDTH = 22, 16, 30  # + elapsed 7 + 3 spaces = 78
+
+    def __init__(self, total: int, show: bool = True, console=None):
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+        from rich.table import Column
+
+        def text(field: str, width: int) -> TextColumn:
+            return TextColumn(field, markup=False, table_column=Column(
+                width=width, no_wrap=True, overflow="ellipsis"))
+
+        self.bar = Progress(text("{task.description}", self.NAME_WIDTH),
+                            BarColumn(bar_width=self.BAR_WIDTH),
+                            text("{task.fields[info]}", self.INFO_WIDTH), TimeElapsedColumn(),
+                            console=console, refresh_per_second=4, disable=not show)
+        self.total, self.runs, self.done, self.failed = total, {}, set(), 0
+        self.sweep = self.bar.add_task("sweep", total=total, info="")
+
+    def __enter__(self):
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.bar.__exit__(*exc)
+
+    def started(self, todo: int, done: int) -> None:
+        """Show how many runs were complete before and how many are to run."""
+        self.bar.update(self.sweep, completed=done, info=f"{done} done before, {todo} to run")
+
+    def progress(self, name: str, fraction: float, info: str) -> None:
+        """Move the bar of run ``name`` (adding it on its first event); ``info`` is the
+        runner's ProgressInfo.text() forwarded by the worker."""
+        if name in self.done:  # a late event of a finished run
+            return
+        if name not in self.runs:
+            label = "  " + _tail(name, self.NAME_WIDTH - 2)
+            self.runs[name] = self.bar.add_task(label, total=1.0, info="")
+        self.bar.update(self.runs[name], completed=fraction, info=info)
+
+    def finished(self, member, summary: dict) -> None:
+        """Drop the run's bar, advance the sweep's, and print the run's status once."""
+        self.done.add(member.name)
+        if member.name in self.runs:
+            self.bar.remove_task(self.runs.pop(member.name))
+        self.failed += summary.get("status") != "completed"
+        self.bar.advance(self.sweep)
+        self.bar.update(self.sweep, info=f"{self.failed} failed" if self.failed else "")
+        self.bar.console.print(f"{member.name}: {summary.get('status')}"
+                               f" ({summary.get('wall_time_s') or 0:.1f} s)",
+                               markup=False, highlight=False)
+
+    def events(self):
+        """The callbacks that run_sweep calls (SweepEvents) drawing on this display."""
+
+        return SweepEvents(self.started, self.progress, self.finished)
+
+
+@dataclass(frozen=True)
+class SweepEvents:
+    """Callbacks of a running sweep (the CLI draws progress with them).
+
+    ``started(todo, done)`` once with the numbers of runs to do and done before;
+    ``progress(name, fraction, info)`` as a run advances (``info``: ProgressInfo.text() of
+    its last reported step, or "starting"); ``finished(member, summary)`` when a run ends.
+    """
+
+    started: Callable[[int, int], None] = lambda todo, done: None
+    progress: Callable[[str, float, str], None] = lambda name, fraction, info: None
+    finished: Callable[[Any, dict], None] = lambda member, summary: None  # (Member, summary)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from beamcontact.assembly.build import Discretization, point_sampler, polyline_matrix
+from beamcontact.build.model import Discretization, point_sampler, polyline_matrix
 from beamcontact.io.case import Case, at_fraction
 from beamcontact.io.results import HistoryWriter, StateWriter, read_history
 from beamcontact.io.vtk import VtkSeries

@@ -10,29 +10,29 @@ can be continued with ``restart=True`` from the last state in results.h5.
 
 import time
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 
 from beamcontact import __version__, require_x64
-from beamcontact.assembly.build import Discretization, build_model, discretize
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
-from beamcontact.contact.laws import CoarseGrained
-from beamcontact.contact.overlap import describe, initial_overlaps
-from beamcontact.contact.problem import build_contact, freeze
-from beamcontact.contact.resolution import contact_resolution, resolution_warning
-from beamcontact.dynamics.driver import (
-    DIAGNOSTICS,
-    DynamicStep,
-    EnergyAccount,
-    StepControl,
-    host_diagnostics,
-    solve_dynamic,
+from beamcontact.build.contact import build_contact
+from beamcontact.build.model import (
+    Discretization,
+    build_model,
+    discretize,
     uniform_velocities,
 )
+from beamcontact.contact.laws import CoarseGrained
+from beamcontact.contact.overlap import describe, initial_overlaps
+from beamcontact.contact.problem import freeze
+from beamcontact.contact.resolution import contact_resolution, resolution_warning
+from beamcontact.dynamics.control import EnergyAccount, StepControl
+from beamcontact.dynamics.driver import DynamicStep, solve_dynamic
 from beamcontact.dynamics.hht import DynState, initial_state
+from beamcontact.dynamics.step import DIAGNOSTICS, host_diagnostics
 from beamcontact.io.case import Case, CaseError, parse_case
 from beamcontact.io.results import read_last_state, write_summary
 from beamcontact.progress import Progress, ProgressInfo
@@ -119,7 +119,7 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     wall0 = time.perf_counter()
     disc = _discretize(case)
     model, disc = build_model(case, disc)
-    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, 0.0, case.solver.utol)
+    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, case.solver.utol)
     contact = build_contact(case, disc)
     warnings = [] if restart else _check_initial_overlap(case, model, contact)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
@@ -262,49 +262,69 @@ def _same_model(stored: Case, case: Case) -> None:
                         f"analysis.t_end, [solver] and [output] may change)")
 
 
+@dataclass(frozen=True)
+class _Start:
+    """Where a dynamic run starts: its state, the counters so far (a restart continues
+    them), its energy account and its record."""
+
+    state: DynState
+    step0: int
+    dt_start: float
+    iterations: int
+    cutbacks: int
+    account: EnergyAccount
+    rec: RunRecord
+
+
+def _save(rec: RunRecord, s: DynamicStep, iterations_total: int) -> None:
+    """One accepted step into history.csv and results.h5 (with what a restart needs)."""
+    st = s.state
+    rec.row(s.step, s.t, st.u, s.diagnostics, s.iterations, s.cutbacks, dt=s.dt)
+    rec.state(s.step, s.t, st.u, v=st.v, a=st.a, f_pot=st.f_pot,
+              load_theta=st.load_state.theta, load_tangent=st.load_state.tangent, dt=s.dt,
+              dt_next=s.dt_next, iterations_total=iterations_total, cutbacks_total=s.cutbacks,
+              energy_account=_account_record(s.diagnostics))
+
+
+def _dynamic_start(case, case_text, disc, model, out_dir, restart, contact) -> _Start:
+    """The start of a dynamic run: t = 0 (its row and snapshot written), or the last
+    saved state of the run in out_dir (restart)."""
+    an = case.analysis
+    if restart:
+        state, last = _restart_state(case, out_dir, model)
+        if float(state.t) >= an.t_end - 1e-12 * an.t_end:
+            raise CaseError(f"--restart: the run in {out_dir} already reached t = "
+                            f"{float(state.t):.6g} s >= analysis.t_end")
+        step0 = int(last["step"])
+        rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
+                        DYNAMIC_COLUMNS, resume=(step0, float(state.t)))
+        return _Start(state, step0, float(last["dt_next"]), int(last["iterations_total"]),
+                      int(last["cutbacks_total"]),
+                      _account_from_record(last["energy_account"]), rec)
+    state, cs0 = _initial_dynamic_state(case, disc, model, contact)
+    rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
+                    DYNAMIC_COLUMNS)
+    diag0 = {**host_diagnostics(state, model, contact, cs0), "error": 0.0,
+             "E_dissipated": 0.0, "E_set_change": 0.0}
+    _save(rec, DynamicStep(0, 0.0, 0.0, an.dt, state, 0, 0, diag0), 0)
+    rec.snapshot(0.0, state.u)
+    return _Start(state, 0, an.dt, 0, 0, _account_from_record(_account_record(diag0)), rec)
+
+
 def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
                  contact) -> tuple[dict, RunRecord]:
     an = case.analysis
     interval = case.output.vtk_interval or an.t_end / 100.0
-    if restart:
-        state, last = _restart_state(case, out_dir, model)
-        step0, dt_start = int(last["step"]), float(last["dt_next"])
-        before = {"iterations": int(last["iterations_total"]),
-                  "cutbacks": int(last["cutbacks_total"])}
-        account = _account_from_record(last["energy_account"])
-        if float(state.t) >= an.t_end - 1e-12 * an.t_end:
-            raise CaseError(f"--restart: the run in {out_dir} already reached t = "
-                            f"{float(state.t):.6g} s >= analysis.t_end")
-        rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
-                        DYNAMIC_COLUMNS, resume=(step0, float(state.t)))
-    else:
-        state, cs0 = _initial_dynamic_state(case, disc, model, contact)
-        step0, dt_start, before = 0, an.dt, {"iterations": 0, "cutbacks": 0}
-        rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
-                        DYNAMIC_COLUMNS)
-    next_snapshot = [np.floor(float(state.t) / interval + 1e-9) * interval + interval]
-    tally = _Tally(steps=step0, iterations=before["iterations"], cutbacks=before["cutbacks"],
-                   reached=float(state.t))
-
-    def save(step: int, t: float, st: DynState, h: float, iterations: int, cutbacks: int,
-             diag: dict, dt_next: float) -> None:
-        rec.row(step, t, st.u, diag, iterations, cutbacks, dt=h)
-        rec.state(step, t, st.u, v=st.v, a=st.a, f_pot=st.f_pot,
-                  load_theta=st.load_state.theta, load_tangent=st.load_state.tangent,
-                  dt=h, dt_next=dt_next, iterations_total=tally.iterations,
-                  cutbacks_total=cutbacks, energy_account=_account_record(diag))
-
-    if not restart:
-        diag0 = {**host_diagnostics(state, model, contact, cs0), "error": 0.0,
-                 "E_dissipated": 0.0, "E_set_change": 0.0}
-        save(0, 0.0, state, 0.0, 0, 0, diag0, an.dt)
-        rec.snapshot(0.0, state.u)
-        account = _account_from_record(_account_record(diag0))
+    start = _dynamic_start(case, case_text, disc, model, out_dir, restart, contact)
+    rec = start.rec
+    next_snapshot = [np.floor(float(start.state.t) / interval + 1e-9) * interval + interval]
+    tally = _Tally(steps=start.step0, iterations=start.iterations, cutbacks=start.cutbacks,
+                   reached=float(start.state.t))
 
     def on_step(s: DynamicStep) -> None:
-        cutbacks = before["cutbacks"] + s.cutbacks
-        tally.accept(s.step, s.t, s.iterations, cutbacks)
-        save(s.step, s.t, s.state, s.dt, s.iterations, cutbacks, s.diagnostics, s.dt_next)
+        s = replace(s, cutbacks=start.cutbacks + s.cutbacks)
+        tally.accept(s.step, s.t, s.iterations, s.cutbacks)
+        _save(rec, s, tally.iterations)
         if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
             rec.snapshot(s.t, s.state.u)
             next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval
@@ -312,21 +332,21 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
             progress(ProgressInfo(s.t / an.t_end, "t", s.t, s.step, s.dt, s.iterations))
 
     try:
-        result = solve_dynamic(model, state, an.t_end, an.alpha, opts, disc.length_scale,
-                               step_control(case), dt_start=dt_start, step0=step0,
-                               on_step=on_step, contact=contact,
-                               capacity=case.contact.capacity, account=account)
+        result = solve_dynamic(model, start.state, an.t_end, an.alpha, opts,
+                               disc.length_scale, step_control(case), dt_start=start.dt_start,
+                               step0=start.step0, on_step=on_step, contact=contact,
+                               capacity=case.contact.capacity, account=start.account)
         summary = {"status": result.status, "message": result.message,
-                   "steps": step0 + result.steps,
-                   "newton_iterations": before["iterations"] + result.iterations,
-                   "cutbacks": before["cutbacks"] + result.cutbacks,
+                   "steps": start.step0 + result.steps,
+                   "newton_iterations": start.iterations + result.iterations,
+                   "cutbacks": start.cutbacks + result.cutbacks,
                    "rejections": result.rejections, "t_final": result.t,
                    "solve_time_s": result.wall_time, "compile_time_s": result.compile_time}
     except KeyboardInterrupt:
         summary = {**tally.interrupted("t"), "rejections": None, "t_final": tally.reached}
     rec.close()
     rec.plots()
-    summary["restarted_from_step"] = step0 if restart else None
+    summary["restarted_from_step"] = start.step0 if restart else None
     summary["mean_iterations_per_step"] = summary["newton_iterations"] / max(summary["steps"], 1)
     return {**summary, **_dynamic_results(rec, contact)}, rec
 

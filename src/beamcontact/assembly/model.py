@@ -8,7 +8,6 @@ from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 
 def _pytree(cls=None, *, meta=()):
@@ -25,9 +24,8 @@ def _pytree(cls=None, *, meta=()):
 
 @_pytree
 class BeamBlock:
-    """All elements of the beams of one shape (degree, Gauss points, section points): the
-    kernels run over all of them in one ``vmap``, so the number of beams does not multiply
-    the number of operations.
+    """All elements of one beam (one degree, number of Gauss points and of section points):
+    the kernels run over them in one ``vmap``.
 
     Shapes: conn (n_el, n_loc) global control-point indices; R, dR, ddR (n_el, n_qp, n_loc);
     wq, g_ref, K_ref (n_el, n_qp); eta, w_eta (n_el, n_eta); per element: E, rho_area (mass
@@ -105,10 +103,5 @@ def initial_load_state(model: Model) -> LoadState:
     """Zero rotation and the reference tangent at every load point."""
     t = jnp.einsum("lk,lkd->ld", model.loads.dR, model.x_ref[model.loads.conn])
     return LoadState(theta=jnp.zeros(t.shape[0]), tangent=t)
-
-
-def as_float(x) -> jax.Array:
-    """Host value -> float64 JAX array."""
-    return jnp.asarray(np.asarray(x, dtype=np.float64))
 
 

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beamcontact.assembly.model import as_float
+from beamcontact._x64 import as_float
 from beamcontact.spline import nurbs_basis_derivatives
 
 

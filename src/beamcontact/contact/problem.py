@@ -28,7 +28,7 @@ from beamcontact.contact.blocks import (
 )
 from beamcontact.contact.broadphase import box_gap_lower_bound, candidate_pairs
 from beamcontact.contact.laws import ContactLaw
-from beamcontact.contact.points import ContactElements, contact_elements
+from beamcontact.contact.points import ContactElements
 from beamcontact.contact.select import closest_pair_weights
 
 
@@ -191,24 +191,3 @@ _after_step = jax.jit(missed_blocks, static_argnames=("capacity",))
 def freeze(contact: ContactProblem | None, cs: ContactSet | None) -> FrozenContact | None:
     """The contact of one step for the assembly (None without contact)."""
     return None if contact is None else FrozenContact(contact.elements, cs)
-
-
-def build_contact(case, disc) -> ContactProblem | None:
-    """The contact problem of a validated case (None for contact.model = "none")."""
-    c = case.contact
-    radii = [b.section.half_depth for b in disc.beams]
-    law = c.law(radii)
-    if law is None or len(disc.beams) < 2:
-        return None
-    betas = c.densities if len(c.densities) == len(disc.beams) else [c.densities[0]] * len(
-        disc.beams)
-    beam_pairs = None if c.pairs is None else [
-        (case.beam_index(a), case.beam_index(b)) for a, b in c.pairs]
-    ce = contact_elements(disc, c.segments_per_element, betas, beam_pairs)
-    beam_of = np.asarray(ce.beam)
-    local, n_el = np.zeros_like(beam_of), np.zeros(len(disc.beams), dtype=np.int64)
-    for e, b in enumerate(beam_of):
-        local[e] = n_el[b]
-        n_el[b] += 1
-    return ContactProblem(law, ce, float(law.search_reach(max(radii))),
-                          c.max_penetration_or(radii), beam_of, local, n_el)

@@ -19,7 +19,6 @@ class NewtonOptions:
 
     max_iterations: int = 25
     rtol: float = 1e-9
-    atol: float = 0.0
     utol: float = 1e-11
 
 

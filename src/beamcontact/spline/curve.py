@@ -5,7 +5,7 @@ from functools import cached_property
 
 import numpy as np
 
-from beamcontact.spline.basis import basis_derivatives, find_span, nurbs_basis_derivatives
+from beamcontact.spline.basis import nurbs_basis_derivatives
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,17 +58,6 @@ class NurbsCurve:
     def evaluate(self, u: np.ndarray, nders: int = 0) -> np.ndarray:
         """Points and parametric derivatives: shape (nders+1, len(u), 2)."""
         return self.basis_matrix(u, nders) @ self.points
-
-    def evaluate_homogeneous(self, u: np.ndarray) -> np.ndarray:
-        """The polynomial homogeneous curve C^w(u), shape (len(u), 3) (P&T eq. 4.5)."""
-        u = np.atleast_1d(np.asarray(u, float))
-        pw = self.homogeneous()
-        out = np.zeros((len(u), 3))
-        for k, uk in enumerate(u):
-            span = find_span(self.knots, self.degree, uk)
-            N = basis_derivatives(self.knots, self.degree, span, uk, 0)[0]
-            out[k] = N @ pw[span - self.degree : span + 1]
-        return out
 
     def arc_length(self, u: float = 1.0) -> float:
         """Arc length from parameter 0 to u."""

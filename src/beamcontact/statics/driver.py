@@ -13,7 +13,7 @@ halving the load increment on NaN residuals.
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import jax
 import jax.numpy as jnp
@@ -29,6 +29,7 @@ from beamcontact.assembly.system import (
 )
 from beamcontact.contact.blocks import FrozenContact
 from beamcontact.contact.problem import ContactProblem, freeze
+from beamcontact.dynamics.control import next_step
 from beamcontact.solvers.newton import NewtonOptions, newton
 from beamcontact.statics.restraint import beam_modes, beam_ranges, singular_tangent_message
 
@@ -120,81 +121,102 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         beam_names: the beams' names in model order, for the message when the supports
             leave a beam free (None: beams are named by number and control points).
     """
-    start = time.perf_counter()
-    tol = jnp.array([options.rtol, options.atol, options.utol * length])
-    u = jnp.zeros(model.n_dof)
-    state = initial_load_state(model)
-    nominal = 1.0 / load_steps
-    lam, dlam = 0.0, nominal
-    steps = iterations = cutbacks = 0
-    consecutive = 0
-    compile_time = 0.0
-    cs = None
-    margin = 0.0 if contact is None else 0.5 * contact.reach
-    if contact is not None:
-        capacity = min(capacity, contact.all_pairs)
-
-    def contact_set(u):
-        return contact.frozen_set(model.x_ref + u.reshape(-1, 2), margin, capacity)
-
-    if contact is not None:
-        cs, count = contact_set(u)
-        if count > capacity:  # complete, since the singularity check needs every block
-            capacity = contact.capacity_for(count)
-            cs, _ = contact_set(u)
+    loop = _LoadLoop(jnp.zeros(model.n_dof), initial_load_state(model), 1.0 / load_steps,
+                     capacity if contact is None else min(capacity, contact.all_pairs),
+                     0.0 if contact is None else 0.5 * contact.reach)
+    loop.dlam = loop.nominal
+    tol = jnp.array([options.rtol, 0.0, options.utol * length])  # no absolute residual test
+    if contact is not None:  # complete, since the singularity check needs every block
+        loop.cs, loop.capacity = contact.grown_set(loop.x(model), loop.margin, loop.capacity)
     if on_step is not None:
         on_step(StaticStep(0, 0.0, np.zeros(model.n_dof), 0, 0,
-                           _step_values(u, model, 0.0, state, contact, cs)))
-    singular = mechanism_message(model, contact, cs, state, beam_names)
+                           _step_values(loop.u, model, 0.0, loop.state, contact, loop.cs)))
+    singular = mechanism_message(model, contact, loop.cs, loop.state, beam_names)
     if singular is not None:
-        return StaticResult("failed", singular, 0, 0, 0, 0.0, np.asarray(u),
-                            time.perf_counter() - start, 0.0)
-    while lam < 1.0 - 1e-12:
-        dl = min(dlam, 1.0 - lam)
-        if contact is not None:
-            cs, count = contact_set(u)
-            if count > capacity:
-                capacity = contact.capacity_for(count)
-                continue
-        t0 = time.perf_counter()
-        res = _solve_step(u, model, jnp.asarray(lam + dl), state, tol,
-                          max_iterations=options.max_iterations, contact=freeze(contact, cs))
-        converged = bool(res.converged)
-        if converged and contact is not None:
-            x_new = model.x_ref + res.u.reshape(-1, 2)
-            if contact.check_step(x_new, cs, capacity)[0]:
-                margin *= 4.0  # the step moved further than the margin foresaw: redo it
-                continue
-        if steps == 0 and cutbacks == 0:
-            compile_time = time.perf_counter() - t0  # first call: compile + one solve
-        iterations += int(res.iterations)
-        if not converged:
-            cutbacks += 1
-            consecutive += 1
-            if consecutive > max_cutbacks:
-                return StaticResult(
-                    "failed",
-                    f"Newton did not converge at load factor {lam + dl:.6g} "
-                    f"({int(res.iterations)} iterations, residual {float(res.residual_norm):.3e}"
-                    f" from {float(res.initial_residual_norm):.3e}) after {consecutive - 1} "
-                    f"successive halvings of the load increment (now {dl:.3g}); the last "
-                    f"converged load factor is {lam:.6g}",
-                    steps, iterations, cutbacks, lam, np.asarray(u),
-                    time.perf_counter() - start, compile_time)
-            dlam = 0.5 * dl
+        return loop.result("failed", singular)
+    while loop.lam < 1.0 - 1e-12:
+        dl = min(loop.dlam, 1.0 - loop.lam)
+        res = _load_attempt(loop, model, dl, tol, options, contact)
+        if res is None:  # the candidate list or the search margin grew: redo
             continue
-        consecutive = 0
-        u = res.u
-        lam += dl
-        steps += 1
-        state = _update(model, u, state)
+        if not bool(res.converged):
+            loop.cutbacks += 1
+            loop.consecutive += 1
+            if loop.consecutive > max_cutbacks:
+                return loop.result("failed", _failure(loop, res, dl))
+            loop.dlam = 0.5 * dl
+            continue
+        loop.consecutive = 0
+        loop.u, loop.lam, loop.steps = res.u, loop.lam + dl, loop.steps + 1
+        loop.state = _update(model, loop.u, loop.state)
         if on_step is not None:
-            on_step(StaticStep(steps, lam, np.asarray(u), int(res.iterations), cutbacks,
-                               _step_values(u, model, lam, state, contact, cs)))
-        dlam = min(2.0 * dlam, nominal)
-    return StaticResult("completed", f"reached load factor 1 in {steps} steps", steps,
-                        iterations, cutbacks, lam, np.asarray(u),
-                        time.perf_counter() - start, compile_time)
+            on_step(StaticStep(loop.steps, loop.lam, np.asarray(loop.u), int(res.iterations),
+                               loop.cutbacks, _step_values(loop.u, model, loop.lam, loop.state,
+                                                           contact, loop.cs)))
+        # no error estimate in statics: the increment grows back after every converged step
+        loop.dlam = next_step(loop.dlam, 0.0, 0.0, loop.nominal, False, 0)
+    return loop.result("completed", f"reached load factor 1 in {loop.steps} steps")
+
+
+@dataclass
+class _LoadLoop:
+    """The host state of the load stepping between attempts (local to solve_static)."""
+
+    u: jax.Array
+    state: LoadState
+    nominal: float
+    capacity: int
+    margin: float
+    lam: float = 0.0
+    dlam: float = 0.0
+    cs: object = None
+    steps: int = 0
+    iterations: int = 0
+    cutbacks: int = 0
+    consecutive: int = 0
+    compile_time: float | None = None
+    start: float = field(default_factory=time.perf_counter)
+
+    def x(self, model: Model):
+        return model.x_ref + self.u.reshape(-1, 2)
+
+    def result(self, status: str, message: str) -> "StaticResult":
+        return StaticResult(status, message, self.steps, self.iterations, self.cutbacks,
+                            self.lam, np.asarray(self.u), time.perf_counter() - self.start,
+                            self.compile_time or 0.0)
+
+
+def _load_attempt(loop: _LoadLoop, model: Model, dl: float, tol, options: NewtonOptions,
+                  contact: ContactProblem | None):
+    """Newton at load factor lam + dl from the last converged state with the contact set
+    frozen there; None when the candidate list overflowed or the solution left the search
+    margin (both grown in ``loop``; the attempt is redone)."""
+    if contact is not None:
+        loop.cs, count = contact.frozen_set(loop.x(model), loop.margin, loop.capacity)
+        if count > loop.capacity:
+            loop.capacity = contact.capacity_for(count)
+            return None
+    t0 = time.perf_counter()
+    res = _solve_step(loop.u, model, jnp.asarray(loop.lam + dl), loop.state, tol,
+                      max_iterations=options.max_iterations, contact=freeze(contact, loop.cs))
+    if bool(res.converged) and contact is not None:
+        x_new = model.x_ref + res.u.reshape(-1, 2)
+        if contact.check_step(x_new, loop.cs, loop.capacity)[0]:
+            loop.margin *= 4.0  # the step moved further than the margin foresaw: redo it
+            return None
+    if loop.compile_time is None:
+        loop.compile_time = time.perf_counter() - t0  # first call: compile + one solve
+    loop.iterations += int(res.iterations)
+    return res
+
+
+def _failure(loop: _LoadLoop, res, dl: float) -> str:
+    """The message of load stepping stopped by Newton failing ``max_cutbacks`` times."""
+    return (f"Newton did not converge at load factor {loop.lam + dl:.6g} "
+            f"({int(res.iterations)} iterations, residual {float(res.residual_norm):.3e} "
+            f"from {float(res.initial_residual_norm):.3e}) after {loop.consecutive - 1} "
+            f"successive halvings of the load increment (now {dl:.3g}); the last converged "
+            f"load factor is {loop.lam:.6g}")
 
 
 def _step_values(u, model, lam, state, contact, cs) -> dict:

@@ -10,8 +10,8 @@ on every fixed dof are not restrained by them. Such a mode makes the static tang
 singular unless contact with another beam restrains it (loads never do).
 
 Two checks use this, both on the host with NumPy (small 3 x 3 or n x 3 problems):
-- :func:`static_mechanisms`, from the case alone: a beam with unrestrained modes and no
-  contact partner is a mechanism (invalid input);
+- ``build.checks.static_mechanisms``, from the case alone: a beam with unrestrained modes
+  and no contact partner is a mechanism (invalid input);
 - :func:`singular_tangent_message`, from the assembled tangent at u = 0 (contact included):
   the modes that neither supports nor contact restrain.
 """
@@ -19,8 +19,6 @@ Two checks use this, both on the host with NumPy (small 3 x 3 or n x 3 problems)
 from collections.abc import Sequence
 
 import numpy as np
-
-from beamcontact.assembly.build import supported_dofs
 
 # a mode v is in the null space of K when ||K v|| <= NULL_TOL ||K|| ||v||: round-off of
 # the assembled stiffness leaves 1e-17 to 1e-15; a contact that holds a beam gives much
@@ -91,41 +89,6 @@ def _plural(m: int) -> str:
 
 
 HINT = "add supports: clamp an end, or pin both ends"
-
-
-def static_mechanisms(case, disc) -> list[str]:
-    """Beams of a static case that their supports do not hold and that have no contact
-    partner: one message per beam, naming the key (``beams[i] (name).supports``).
-
-    A beam that may touch another (contact model other than "none", and listed in
-    ``contact.pairs`` if given) is left to the solver: contact can hold it.
-    """
-    if case.analysis.kind != "static":
-        return []
-    fixed = supported_dofs(case, disc)
-    partners = _contact_partners(case)
-    found = []
-    for i, (beam, info) in enumerate(zip(case.beams, disc.beams, strict=True)):
-        if beam.name in partners:
-            continue
-        x = info.curve.points
-        dofs = slice(2 * info.offset, 2 * (info.offset + info.n_cp))
-        modes = unrestrained_modes(x, fixed[dofs])
-        if modes.shape[1]:
-            found.append(
-                f"beams[{i}] ({beam.name}).supports: the beam is a mechanism in this static "
-                f"analysis: {describe_modes(x, modes)} ({_plural(modes.shape[1])} not "
-                f"restrained by its supports, and it has no contact partner); {HINT}")
-    return found
-
-
-def _contact_partners(case) -> set[str]:
-    """Names of the beams that can be in contact with another beam."""
-    if case.contact.model == "none" or len(case.beams) < 2:
-        return set()
-    if case.contact.pairs is None:
-        return {b.name for b in case.beams}
-    return {name for pair in case.contact.pairs if pair[0] != pair[1] for name in pair}
 
 
 def beam_ranges(conns: Sequence[np.ndarray]) -> list[tuple[int, int]]:

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
-from beamcontact.assembly.model import BeamBlock, Model, PointLoads, as_float
+from beamcontact._x64 import as_float
+from beamcontact.assembly.model import BeamBlock, Model, PointLoads
 from beamcontact.beam.mesh import BeamMesh, build_mesh, point_basis, refine_axis
 from beamcontact.beam.section import Section, circle_section, rectangle_section
 from beamcontact.io.case import Beam, Case, at_fraction
@@ -194,3 +195,11 @@ def polyline_matrix(info: BeamInfo, samples_per_element: int) -> np.ndarray:
     u = np.unique(np.concatenate([np.linspace(a, b, samples_per_element + 1)
                                   for a, b in zip(breaks[:-1], breaks[1:], strict=True)]))
     return info.curve.basis_matrix(u)[0]
+
+
+def uniform_velocities(disc, velocities) -> np.ndarray:
+    """Global control-point velocities from one uniform velocity per beam (flat)."""
+    v = np.zeros((disc.n_cp, 2))
+    for info, vel in zip(disc.beams, velocities, strict=True):
+        v[info.offset : info.offset + info.n_cp] = vel
+    return v.ravel()
