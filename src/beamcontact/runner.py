@@ -29,7 +29,7 @@ from beamcontact.contact.laws import CoarseGrained
 from beamcontact.contact.overlap import describe, initial_overlaps
 from beamcontact.contact.problem import freeze
 from beamcontact.contact.resolution import contact_resolution, resolution_warning
-from beamcontact.dynamics.control import EnergyAccount, StepControl
+from beamcontact.dynamics.control import EnergyAccount, StepControl, total_energy
 from beamcontact.dynamics.driver import DynamicStep, solve_dynamic
 from beamcontact.dynamics.hht import DynState, initial_state
 from beamcontact.dynamics.step import DIAGNOSTICS, host_diagnostics
@@ -171,7 +171,7 @@ def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart,
 
     def on_step(s: StaticStep) -> None:
         e = s.energies
-        e = {**e, "E_total": e["E_strain"] + e["E_gravity"] + e["E_ext"] + e["E_contact"]}
+        e = {**e, "E_total": total_energy({**e, "E_kin": 0.0})}
         rec.row(s.step, s.load_factor, s.u, e, s.iterations, s.cutbacks)
         rec.state(s.step, s.load_factor, s.u)
         if s.step % case.output.vtk_every == 0 or s.load_factor >= 1.0 - 1e-12:

@@ -78,7 +78,8 @@ def _over_pairs(f):
 
 
 def _gather(ce: ContactElements, idx):
-    """Element data with the sentinel index E mapped to element 0 (its weight is 0)."""
+    """(control points, basis rows, radius, density) of elements ``idx``, the sentinel
+    index E mapped to element 0 (its weight is 0)."""
     safe = jnp.minimum(idx, ce.n_elements - 1)
     return (ce.conn[safe], ce.R[safe], ce.radius[safe], ce.beta[safe])
 
@@ -182,21 +183,21 @@ def _block_forces(x, ce: ContactElements, cs: ContactSet):
 
     With A = 2 W f' and B = 4 W f'' per point pair, the pair Hessian is
     A I + B r r^T: its three distinct components (xx, xy, yy) are scalar fields over the
-    pairs, so each element-pair tangent is three small products R1^T H_ab R2 (and the
+    pairs, so each element-pair tangent is three small products rows1^T H_ab rows2 (and the
     diagonal blocks R^T diag(row sums) R), never a (C, s, s, 2, 2) array.
     """
-    (c1, R1, r1, b1), (c2, R2, r2, b2), r = _block_geometry(x, ce, cs.pairs)
+    (c1, rows1, r1, b1), (c2, rows2, r2, b2), r = _block_geometry(x, ce, cs.pairs)
     f1, f2 = _over_pairs(_pair_derivatives(_pair_law(cs.law)))(
         jnp.sum(r * r, -1), r1 + r2, cs.law.amplitude(r1, r2, b1 * b2))
     A, B = 2.0 * cs.W * f1, 4.0 * cs.W * f2  # (C, s, s)
     G = A[..., None] * r  # gradient of each pair's energy in r
     rx, ry = r[..., 0], r[..., 1]
     H = jnp.stack([A + B * rx * rx, B * rx * ry, A + B * ry * ry], axis=1)  # (C, 3, s, s)
-    g1 = jnp.einsum("cik,cija->cka", R1, G)
-    g2 = -jnp.einsum("cjl,cija->cla", R2, G)
-    H11 = jnp.einsum("cik,cmi,cil->cmkl", R1, H.sum(axis=3), R1)
-    H22 = jnp.einsum("cjk,cmj,cjl->cmkl", R2, H.sum(axis=2), R2)
-    H12 = -jnp.einsum("cik,cmij,cjl->cmkl", R1, H, R2)
+    g1 = jnp.einsum("cik,cija->cka", rows1, G)
+    g2 = -jnp.einsum("cjl,cija->cla", rows2, G)
+    H11 = jnp.einsum("cik,cmi,cil->cmkl", rows1, H.sum(axis=3), rows1)
+    H22 = jnp.einsum("cjk,cmj,cjl->cmkl", rows2, H.sum(axis=2), rows2)
+    H12 = -jnp.einsum("cik,cmij,cjl->cmkl", rows1, H, rows2)
     C, n_loc = c1.shape
     m = 2 * n_loc
 

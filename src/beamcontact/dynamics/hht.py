@@ -49,6 +49,12 @@ class DynState:
     load_state: LoadState
 
 
+def predictor(state: DynState, h):
+    """The Newmark predictor of the displacement after a step h (constant acceleration):
+    the start of Newton and of the contact search."""
+    return state.u + h * state.v + 0.5 * h * h * state.a
+
+
 def hht_coefficients(alpha, dt):
     """(c_a, dt, c_1, gamma) of the Newmark kinematics for HHT parameter alpha."""
     beta = 0.25 * (1.0 - alpha) ** 2
@@ -85,7 +91,7 @@ def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs, max_itera
         r = r_i + (1.0 + alpha) * r_p - alpha * state.f_pot
         return (*apply_supports(r, K_i + (1.0 + alpha) * K_p, model.free), r_p)
 
-    u_pred = state.u + dt * state.v + 0.5 * dt**2 * state.a
+    u_pred = predictor(state, dt)
     tol = jnp.stack([rtol, rtol * jnp.linalg.norm(state.f_pot * model.free), utol_abs])
     res = newton(residual_tangent, u_pred, max_iterations, tol, diverge_after=DIVERGE_AFTER)
     v, a = newmark_kinematics(res.u, state.u, state.v, state.a, coeffs)

@@ -27,7 +27,7 @@ from beamcontact.contact.problem import (
     near_candidates,
 )
 from beamcontact.dynamics.control import ADVANCE_FRACTION, StepFlags, total_energy
-from beamcontact.dynamics.hht import DynState, hht_step
+from beamcontact.dynamics.hht import DynState, hht_step, predictor
 
 # the diagnostics of a state
 DIAGNOSTICS = ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y")
@@ -173,7 +173,7 @@ def _motion(state: DynState, h):
 
 @jax.jit
 def _predicted_x(state: DynState, model: Model, h):
-    return model.x_ref + (state.u + h * state.v + 0.5 * h * h * state.a).reshape(-1, 2)
+    return model.x_ref + predictor(state, h).reshape(-1, 2)
 
 
 @jax.jit
