@@ -23,7 +23,7 @@ def _pytree(cls=None, *, meta=()):
 
 
 @_pytree
-class BeamBlock:
+class ElementBlock:
     """All elements of one beam (one degree, number of Gauss points and of section points):
     the kernels run over them in one ``vmap``.
 
@@ -75,7 +75,7 @@ class Model:
     """Everything the kernels need; varying numbers are array data (one compile per shape).
 
     Attributes:
-        beams: one BeamBlock per beam.
+        beams: one ElementBlock per beam.
         loads: point loads (n_load may be 0).
         x_ref: reference control points of the whole model, shape (n_cp, 2).
         free: 1.0 for free dofs, 0.0 for supported ones, shape (2 n_cp,).

@@ -12,7 +12,7 @@ Static total potential (load factor lam scales all external actions):
 import jax
 import jax.numpy as jnp
 
-from beamcontact.assembly.model import BeamBlock, LoadState, Model, element_dofs
+from beamcontact.assembly.model import ElementBlock, LoadState, Model, element_dofs
 from beamcontact.beam.energy import (
     element_gravity_potential,
     element_strain_energy,
@@ -22,7 +22,7 @@ from beamcontact.beam.loads import point_load_potential, tangent_rotation
 from beamcontact.contact.blocks import FrozenContact, contact_energy, fold_block_forces
 
 
-def _beam_residual_tangent(x, blk: BeamBlock, lam, gravity):
+def _beam_residual_tangent(x, blk: ElementBlock, lam, gravity):
     """Residual and tangent of every element of one beam, (E, 2n) and (E, 2n, 2n).
 
     Strain: AD at the Gauss point (:func:`point_strain_energy` of y = (g1, g1'), 4 numbers)

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beamcontact._x64 import as_float
-from beamcontact.assembly.model import BeamBlock, Model, PointLoads
+from beamcontact.assembly.model import ElementBlock, Model, PointLoads
 from beamcontact.beam.mesh import BeamMesh, build_mesh, point_basis, refine_axis
 from beamcontact.beam.section import Section, circle_section, rectangle_section
 from beamcontact.io.case import Beam, Case, at_fraction
@@ -18,8 +18,10 @@ from beamcontact.spline import NurbsCurve, arc, line
 
 
 @dataclass(frozen=True, eq=False)
-class BeamInfo:
-    """Host-side description of one discretised beam."""
+class DiscreteBeam:
+    """One discretised beam on the host: its refined axis and mesh (``BeamMesh``), its
+    section, and where its control points start in the global numbering (the case
+    file's table of it is ``io.case.Beam``; its kernel arrays an ``ElementBlock``)."""
 
     name: str
     mesh: BeamMesh
@@ -46,10 +48,10 @@ class BeamInfo:
 class Discretization:
     """All beams, in global order, and the total number of control points."""
 
-    beams: tuple[BeamInfo, ...]
+    beams: tuple[DiscreteBeam, ...]
     n_cp: int
 
-    def beam(self, name: str) -> BeamInfo:
+    def beam(self, name: str) -> DiscreteBeam:
         """The beam called ``name``."""
         return next(b for b in self.beams if b.name == name)
 
@@ -101,13 +103,13 @@ def discretize(case: Case) -> Discretization:
         if np.max(np.abs(K)) * section.half_depth >= 1.0:
             raise ValueError(f"beam {b.name!r}: the section half-depth exceeds the radius of "
                              f"curvature of the axis")
-        infos.append(BeamInfo(b.name, mesh, section, offset, curve.arc_length()))
+        infos.append(DiscreteBeam(b.name, mesh, section, offset, curve.arc_length()))
         offset += curve.n_points
     return Discretization(tuple(infos), offset)
 
 
-def _element_data(info: BeamInfo, beam: Beam) -> dict:
-    """Host arrays of every element of one beam, keyed by the BeamBlock fields."""
+def _element_data(info: DiscreteBeam, beam: Beam) -> dict:
+    """Host arrays of every element of one beam, keyed by the ElementBlock fields."""
     mesh = info.mesh
     g, K = _reference_metric(mesh)
     sec = info.section
@@ -124,8 +126,8 @@ def _element_data(info: BeamInfo, beam: Beam) -> dict:
             "gravity_on": each(1.0 if beam.gravity else 0.0)}
 
 
-def _blocks(disc: Discretization, case: Case) -> tuple[BeamBlock, ...]:
-    """One BeamBlock per shape of element data (degree, Gauss points, section points),
+def _blocks(disc: Discretization, case: Case) -> tuple[ElementBlock, ...]:
+    """One ElementBlock per shape of element data (degree, Gauss points, section points),
     the elements of all beams of that shape concatenated in beam order."""
     groups: dict[tuple, list[dict]] = {}
     for info, beam in zip(disc.beams, case.beams, strict=True):
@@ -136,7 +138,7 @@ def _blocks(disc: Discretization, case: Case) -> tuple[BeamBlock, ...]:
     for parts in groups.values():
         cat = {k: np.concatenate([d[k] for d in parts]) for k in parts[0]}
         conn = jnp.asarray(cat.pop("conn"))
-        blocks.append(BeamBlock(conn=conn, **{k: as_float(v) for k, v in cat.items()}))
+        blocks.append(ElementBlock(conn=conn, **{k: as_float(v) for k, v in cat.items()}))
     return tuple(blocks)
 
 
@@ -189,7 +191,7 @@ def point_sampler(disc: Discretization, name: str, fraction: float) -> tuple[np.
     return idx + info.offset, d[0]
 
 
-def polyline_matrix(info: BeamInfo, samples_per_element: int) -> np.ndarray:
+def polyline_matrix(info: DiscreteBeam, samples_per_element: int) -> np.ndarray:
     """Dense matrix mapping the beam's control points to polyline vertices along its axis."""
     breaks = info.mesh.breaks
     u = np.unique(np.concatenate([np.linspace(a, b, samples_per_element + 1)
