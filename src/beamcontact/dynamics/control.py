@@ -12,7 +12,7 @@ size of the next step.
   :class:`Rejection` naming its kind, the reason and the step to retry with.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntFlag
 
 # step controller (Hairer, Norsett & Wanner, Solving ODEs I, Sec. II.4): safety factor and
@@ -73,6 +73,35 @@ class StepControl:
     def fixed(cls, dt: float, max_halvings: int = 12) -> "StepControl":
         """Fixed steps of dt, halved only when Newton fails (theory tests of HHT)."""
         return cls(dt, dt * 0.5 ** (max_halvings + 0.5), 0.0, 0.0, max_halvings)
+
+
+@dataclass
+class Attempts:
+    """The rejected attempts of a run, for load stepping and time stepping alike: in all
+    (``cutbacks``), in a row at the current step (``consecutive``) and by kind. Local to
+    one solve (the loops own it)."""
+
+    cutbacks: int = 0
+    consecutive: int = 0
+    by_kind: dict = field(default_factory=dict)
+
+    def reject(self, rejection: Rejection, control: StepControl) -> bool:
+        """Count a rejected attempt; True when the run must stop: the step to retry is
+        shorter than dt_min, or more than max_rejections attempts in a row failed."""
+        self.cutbacks += 1
+        self.consecutive += 1
+        self.by_kind[rejection.kind] = self.by_kind.get(rejection.kind, 0) + 1
+        return rejection.retry < control.dt_min or self.consecutive > control.max_rejections
+
+    def accept(self) -> None:
+        """A step was accepted: the count in a row starts again."""
+        self.consecutive = 0
+
+    def stop_reason(self, rejection: Rejection, control: StepControl) -> str:
+        """Why the run stops after :meth:`reject` said so."""
+        if rejection.retry < control.dt_min:
+            return f"the step would have to be shorter than dt_min = {control.dt_min:.3g} s"
+        return f"{self.consecutive} successive attempts were rejected"
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,7 @@ from beamcontact.assembly.model import Model
 from beamcontact.contact.problem import ContactProblem, freeze
 from beamcontact.dynamics.control import (
     GROW_MAX,
+    Attempts,
     EnergyAccount,
     Rejection,
     StepControl,
@@ -117,21 +118,20 @@ class _Loop:
     start: float = field(default_factory=time.perf_counter)
     steps: int = 0
     iterations: int = 0
-    cutbacks: int = 0
-    consecutive: int = 0  # rejected attempts at the current step
+    attempts: Attempts = field(default_factory=Attempts)
     set_jumps: list = field(default_factory=list)  # |jump| of the set changes refined
     motion_factor: float = 1.0
     compile_time: float | None = None
-    rejections: dict = field(default_factory=dict)
 
     @property
     def t(self) -> float:
         return float(self.state.t)
 
     def result(self, status: str, message: str) -> "DynamicResult":
-        return DynamicResult(status, message, self.steps, self.iterations, self.cutbacks,
-                             self.t, self.state, self.h_try, time.perf_counter() - self.start,
-                             self.compile_time or 0.0, self.rejections)
+        return DynamicResult(status, message, self.steps, self.iterations,
+                             self.attempts.cutbacks, self.t, self.state, self.h_try,
+                             time.perf_counter() - self.start, self.compile_time or 0.0,
+                             self.attempts.by_kind)
 
 
 def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
@@ -180,12 +180,12 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
                             allowance, created, jump, loop.set_jumps)
         if rejection is not None:
             if _reject(loop, rejection, jump, control):
-                return loop.result("failed", _failure(loop, rejection, report, control.dt_min))
+                return loop.result("failed", _failure(loop, rejection, report, control))
             continue
         _accept(loop, new, report, diag, created, jump, h, tol, control.dt, t_end)
         if on_step is not None:
             on_step(DynamicStep(step0 + loop.steps, loop.t, report["h"], loop.h_try,
-                                loop.state, report["iterations"], loop.cutbacks,
+                                loop.state, report["iterations"], loop.attempts.cutbacks,
                                 {**diag, "min_gap": report["min_gap"],
                                  "E_total": total_energy(diag), "error": report["error"],
                                  "E_dissipated": loop.account.E_dissipated,
@@ -251,36 +251,31 @@ def _attempt(loop: _Loop, model: Model, h: float, alpha: float, options: NewtonO
 def _reject(loop: _Loop, rejection: Rejection, jump: float, control: StepControl) -> bool:
     """Count a rejected attempt and set the step to retry; True when the run must stop
     (the step would be shorter than dt_min, or too many successive rejections)."""
-    loop.cutbacks += 1
-    loop.consecutive += 1
     if rejection.kind == "set_change":
         loop.set_jumps.append(abs(jump))
     else:
         loop.set_jumps.clear()
-    loop.rejections[rejection.kind] = loop.rejections.get(rejection.kind, 0) + 1
-    if rejection.retry < control.dt_min or loop.consecutive > control.max_rejections:
+    if loop.attempts.reject(rejection, control):
         return True
     loop.h_try = rejection.retry
     return False
 
 
-def _failure(loop: _Loop, rejection: Rejection, report: dict, dt_min: float) -> str:
+def _failure(loop: _Loop, rejection: Rejection, report: dict, control: StepControl) -> str:
     """The message of a run stopped at ``rejection`` (``report``: the last attempt)."""
-    why = (f"the step would have to be shorter than dt_min = {dt_min:.3g} s"
-           if rejection.retry < dt_min else
-           f"{loop.consecutive} successive attempts were rejected")
     return (f"{rejection.reason} at t = {loop.t + report['h']:.6g} s (step "
             f"{report['h']:.3g} s, {report['iterations']} iterations, residual "
             f"{report['residual_norm']:.3e} from {report['initial_residual_norm']:.3e}); "
-            f"{why}; the last accepted time is {loop.t:.6g} s")
+            f"{loop.attempts.stop_reason(rejection, control)}; the last accepted time is "
+            f"{loop.t:.6g} s")
 
 
 def _accept(loop: _Loop, new: DynState, report: dict, diag: dict, created: float,
             jump: float, h: float, tol: float, dt: float, t_end: float) -> None:
     """Take the attempt: advance the time, the energy account and the step to try next."""
     h_used = report["h"]
-    after_rejection = loop.consecutive > len(loop.set_jumps)
-    loop.consecutive = 0
+    after_rejection = loop.attempts.consecutive > len(loop.set_jumps)
+    loop.attempts.accept()
     loop.set_jumps.clear()
     loop.motion_factor = 1.0
     t = on_grid(loop.t + h_used, dt, t_end)

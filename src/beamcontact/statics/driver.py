@@ -3,7 +3,10 @@
 The load factor lam runs from 0 to 1 in ``load_steps`` equal increments. A failed Newton
 solve restores the last converged state and halves the increment, up to ``max_cutbacks``
 times in a row; after a success the increment grows back (doubling) to the nominal one.
-Every converged step is handed to ``on_step`` at once, so a later failure loses nothing.
+This is the time stepping's controller (dynamics/control.py: ``StepControl``,
+``Attempts``, ``Rejection``, ``next_step``) with the load factor as time and no error
+estimate. Every converged step is handed to ``on_step`` at once, so a later failure
+loses nothing.
 
 Before the first step, a model whose supports leave some beam free to move rigidly is
 checked for a singular tangent (statics/restraint.py): if neither supports nor contact
@@ -29,7 +32,7 @@ from beamcontact.assembly.system import (
 )
 from beamcontact.contact.blocks import FrozenContact
 from beamcontact.contact.problem import ContactProblem, freeze
-from beamcontact.dynamics.control import next_step
+from beamcontact.dynamics.control import Attempts, Rejection, StepControl, next_step
 from beamcontact.solvers.newton import NewtonOptions, newton
 from beamcontact.statics.restraint import beam_modes, beam_ranges, singular_tangent_message
 
@@ -62,8 +65,13 @@ class StaticResult:
 
 
 @jax.jit(static_argnames=("max_iterations",))
-def _solve_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iterations,
-                contact: FrozenContact | None = None):
+def load_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iterations,
+              contact: FrozenContact | None = None):
+    """One load step, the static counterpart of ``dynamics.hht.hht_step``: Newton from the
+    converged displacement u0 to equilibrium at load factor lam (the loads' rotations
+    ``load_state`` of u0, the contact set frozen), as one jitted call. The init of load
+    stepping is ``assembly.model.initial_load_state``."""
+
     def residual_tangent(u):
         r, K = residual_tangent_with_contact(u, model, lam, load_state, contact)
         return (*apply_supports(r, K, model.free), None)
@@ -125,6 +133,9 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
                      capacity if contact is None else min(capacity, contact.all_pairs),
                      0.0 if contact is None else 0.5 * contact.reach)
     loop.dlam = loop.nominal
+    # the controller of time stepping with the load factor as time: steps of at most the
+    # nominal increment, halved on failure, no error estimate, no smallest step
+    control = StepControl(loop.nominal, 0.0, 0.0, 0.0, max_cutbacks)
     tol = jnp.array([options.rtol, 0.0, options.utol * length])  # no absolute residual test
     if contact is not None:  # complete, since the singularity check needs every block
         loop.cs, loop.capacity = contact.grown_set(loop.x(model), loop.margin, loop.capacity)
@@ -140,21 +151,20 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         if res is None:  # the candidate list or the search margin grew: redo
             continue
         if not bool(res.converged):
-            loop.cutbacks += 1
-            loop.consecutive += 1
-            if loop.consecutive > max_cutbacks:
+            rejection = Rejection("newton", "Newton did not converge", 0.5 * dl)
+            if loop.attempts.reject(rejection, control):
                 return loop.result("failed", _failure(loop, res, dl))
-            loop.dlam = 0.5 * dl
+            loop.dlam = rejection.retry
             continue
-        loop.consecutive = 0
+        loop.attempts.accept()
         loop.u, loop.lam, loop.steps = res.u, loop.lam + dl, loop.steps + 1
         loop.state = _update(model, loop.u, loop.state)
         if on_step is not None:
+            values = _step_values(loop.u, model, loop.lam, loop.state, contact, loop.cs)
             on_step(StaticStep(loop.steps, loop.lam, np.asarray(loop.u), int(res.iterations),
-                               loop.cutbacks, _step_values(loop.u, model, loop.lam, loop.state,
-                                                           contact, loop.cs)))
+                               loop.attempts.cutbacks, values))
         # no error estimate in statics: the increment grows back after every converged step
-        loop.dlam = next_step(loop.dlam, 0.0, 0.0, loop.nominal, False, 0)
+        loop.dlam = next_step(loop.dlam, 0.0, control.error_tol, control.dt, False, 0)
     return loop.result("completed", f"reached load factor 1 in {loop.steps} steps")
 
 
@@ -172,8 +182,7 @@ class _LoadLoop:
     cs: object = None
     steps: int = 0
     iterations: int = 0
-    cutbacks: int = 0
-    consecutive: int = 0
+    attempts: Attempts = field(default_factory=Attempts)
     compile_time: float | None = None
     start: float = field(default_factory=time.perf_counter)
 
@@ -181,7 +190,8 @@ class _LoadLoop:
         return model.x_ref + self.u.reshape(-1, 2)
 
     def result(self, status: str, message: str) -> "StaticResult":
-        return StaticResult(status, message, self.steps, self.iterations, self.cutbacks,
+        return StaticResult(status, message, self.steps, self.iterations,
+                            self.attempts.cutbacks,
                             self.lam, np.asarray(self.u), time.perf_counter() - self.start,
                             self.compile_time or 0.0)
 
@@ -197,7 +207,7 @@ def _load_attempt(loop: _LoadLoop, model: Model, dl: float, tol, options: Newton
             loop.capacity = contact.capacity_for(count)
             return None
     t0 = time.perf_counter()
-    res = _solve_step(loop.u, model, jnp.asarray(loop.lam + dl), loop.state, tol,
+    res = load_step(loop.u, model, jnp.asarray(loop.lam + dl), loop.state, tol,
                       max_iterations=options.max_iterations, contact=freeze(contact, loop.cs))
     if bool(res.converged) and contact is not None:
         x_new = model.x_ref + res.u.reshape(-1, 2)
@@ -214,9 +224,9 @@ def _failure(loop: _LoadLoop, res, dl: float) -> str:
     """The message of load stepping stopped by Newton failing ``max_cutbacks`` times."""
     return (f"Newton did not converge at load factor {loop.lam + dl:.6g} "
             f"({int(res.iterations)} iterations, residual {float(res.residual_norm):.3e} "
-            f"from {float(res.initial_residual_norm):.3e}) after {loop.consecutive - 1} "
-            f"successive halvings of the load increment (now {dl:.3g}); the last converged "
-            f"load factor is {loop.lam:.6g}")
+            f"from {float(res.initial_residual_norm):.3e}) after "
+            f"{loop.attempts.consecutive - 1} successive halvings of the load increment (now "
+            f"{dl:.3g}); the last converged load factor is {loop.lam:.6g}")
 
 
 def _step_values(u, model, lam, state, contact, cs) -> dict:
