@@ -124,6 +124,8 @@ BAD_DYNAMIC = [
     ((("analysis", "t_end"), KeyError), "analysis"),
     ((("beams", 0, "initial_velocity"), [1.0]), "beams[0] (beam).initial_velocity"),
     ((("output", "vtk_interval"), 0.0), "output.vtk_interval"),
+    ((("contact",), {"model": "ipip", "pairing": "nearest"}), "contact.pairing"),
+    ((("contact",), {"model": "cg", "pairing": "points"}), "contact.pairing"),
 ]
 
 

@@ -213,6 +213,64 @@ def test_ipip_plateau_takes_the_middle_pairs():
         assert np.isclose(np.mean(idx[:, 0]), mid)
 
 
+def _pairing_energy(q, pairing, blocks=((0, 1),), n_elements=(1, 1)):
+    """sum W eps q^2 / 2 (eps = 2) of the selection on gaps q (one block per entry of
+    ``blocks``, elements numbered per beam)."""
+    pairs = np.array(blocks)
+    beam_of = np.array([0] * n_elements[0] + [1] * n_elements[1])
+    local = np.array(list(range(n_elements[0])) + list(range(n_elements[1])))
+    W = closest_pair_weights(q, pairs, beam_of, local, np.array(n_elements), q_active=0.1,
+                             pairing=pairing)
+    return np.sum(W * np.minimum(q, 0.0) ** 2), W
+
+
+def test_ipip_points_pairs_every_point_with_its_closest():
+    """pairing = "points": each row (a point of beam 1) and each column (beam 2) gives
+    weight 1/2 to its closest cell, a tie shared; the energy is the independent sum
+    1/2 sum_i Pi(min_j q_ij) + 1/2 sum_j Pi(min_i q_ij), over two blocks of one beam
+    pair (the grid is assembled across element boundaries)."""
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-0.05, 0.2, size=(2, 5, 5))
+    energy, W = _pairing_energy(q, "points", blocks=((0, 2), (1, 2)), n_elements=(2, 1))
+    grid = np.concatenate([q[0], q[1]], axis=0)  # beam 1 points (10) x beam 2 points (5)
+    pen = lambda g: np.minimum(g, 0.0) ** 2  # noqa: E731
+    expected = 0.5 * (np.sum(pen(grid.min(axis=1)) * (grid.min(axis=1) < 0.1))
+                      + np.sum(pen(grid.min(axis=0)) * (grid.min(axis=0) < 0.1)))
+    assert energy == pytest.approx(expected, rel=1e-14)
+    Wg = np.concatenate([W[0], W[1]], axis=0)
+    active_rows = grid.min(axis=1) < 0.1
+    active_cols = grid.min(axis=0) < 0.1
+    assert np.sum(Wg) == pytest.approx(0.5 * (active_rows.sum() + active_cols.sum()))
+    # a tie: two equally close partners share the row's half
+    q_tie = np.full((1, 3, 3), 1.0)
+    q_tie[0, 1, 0] = q_tie[0, 1, 2] = -0.01
+    _, W = _pairing_energy(q_tie, "points")
+    assert W[0, 1, 0] == W[0, 1, 2] == pytest.approx(0.25 + 0.5)
+
+
+def test_ipip_points_energy_is_continuous_where_zones_jumps():
+    """Along a path of gap fields on which a second contact zone appears while the beams
+    overlap, the paper's "zones" energy jumps by the new zone's eps q^2 / 2 however finely
+    the path is sampled; the largest change of the "points" energy between samples
+    shrinks in proportion to the sampling step (continuous: a set change does no work)."""
+    i = np.arange(9)
+    diagonal = i[:, None] == i[None, :]
+    valley = -0.02 + 0.1 * (i[:, None] - i[None, :]) ** 2  # point i faces point i
+    slope = 0.02 * np.abs(i - 4.0) / 4.0  # one zone in the middle ...
+    dip = np.exp(-((i - 6.0) / 1.2) ** 2)  # ... and a second one that appears at 6
+
+    def largest_change(rule, samples):
+        e = [_pairing_energy((valley + diagonal * (-slope + 0.01 * (1 - 2 * tau) * dip)
+                              [:, None])[None], rule)[0]
+             for tau in np.linspace(0.0, 1.0, samples)]
+        return np.max(np.abs(np.diff(e)))
+
+    coarse = {rule: largest_change(rule, 201) for rule in ("zones", "points")}
+    fine = {rule: largest_change(rule, 1601) for rule in ("zones", "points")}
+    assert fine["zones"] > 1e-5 and fine["zones"] > 0.9 * coarse["zones"]  # a jump
+    assert fine["points"] == pytest.approx(coarse["points"] / 8, rel=0.05)  # continuous
+
+
 # --- statics: IPIP closed form -----------------------------------------------------------
 
 def test_ipip_static_reaction_and_penetration():

@@ -2,7 +2,8 @@
 
 Runs the drop (a free 4 m beam falling from a surface gap of 2.76 m onto a pinned 10 m
 beam, E = 1e7 Pa, R = 0.1 m, rho = 1000 kg/m^3, gravity on the falling beam only) with
-both contact models of beamcontact, HHT alpha = 0 (the trapezoidal rule: no numerical
+both contact models of beamcontact (IPIP with the paper's pairing rule, "zones", and with
+the conservative "points" rule), HHT alpha = 0 (the trapezoidal rule: no numerical
 damping, like the peers' integrators), and compares the midspan deflection of the lower
 beam over 0 < t < 1.2 s with the peers' results in benchmarks/peers/results/*.csv
 (made by drop_pyelastica.py and drop_exudyn.py). Prints a table of the largest
@@ -24,17 +25,22 @@ PEERS = {"PyElastica": HERE / "results" / "pyelastica.csv",
          "Exudyn": HERE / "results" / "exudyn.csv"}
 
 
+MODELS = ("cg", "ipip", "ipip-points")
+
+
 def drop_case(model: str, t_end: float = 1.2, segments: int = 20,
-              penalty: float = 1.0e6) -> dict:
+              penalty: float = 1.0e6, E: float = 1.0e7) -> dict:
     """The peer drop as a beamcontact case (the bundled benchmark's discretisation and
-    contact parameters, with the peers' geometry and material)."""
-    material = {"E": 1.0e7, "density": 1000.0}
+    contact parameters, with the peers' geometry and material). ``model``: one of
+    MODELS; "ipip" is the paper's pairing rule ("zones"), "ipip-points" the
+    conservative one (contact.pairing = "points")."""
+    material = {"E": E, "density": 1000.0}
     section = {"shape": "circle", "radius": 0.1}
-    contact = {"model": model, "segments_per_element": segments}
+    contact = {"model": model.split("-")[0], "segments_per_element": segments}
     if model == "cg":
         contact.update(exponent=12, k=5.0e-25, densities=[1.0, 1.0], cutoff=0.3)
     else:
-        contact.update(penalty=penalty)
+        contact.update(penalty=penalty, pairing="points" if model == "ipip-points" else "zones")
     return {
         "title": f"Peer drop: 4 m beam onto a pinned 10 m beam ({model})",
         "analysis": {"kind": "dynamic", "t_end": t_end, "dt": 1.0e-3, "alpha": 0.0,
@@ -70,7 +76,7 @@ def main() -> None:
     for name, path in PEERS.items():
         data = np.genfromtxt(path, delimiter=",", names=True)
         curves[name] = (data["t"], data["A_uy"])
-    for model in ("cg", "ipip"):
+    for model in MODELS:
         t0 = time.perf_counter()
         summary = run_case(parse_case(drop_case(model, args.t_end)), "", args.out / model)
         h = read_history(args.out / model / "history.csv")

@@ -82,8 +82,9 @@ def main(argv=None) -> None:
     ap.add_argument("--laws", nargs="+", default=["svk", "engineering", "pyelastica"],
                     choices=["svk", "engineering", "pyelastica"],
                     help="fibre laws to run (svk: beamcontact's own)")
-    ap.add_argument("--model", default="cg", choices=["cg", "ipip"],
-                    help="beamcontact's contact model")
+    ap.add_argument("--model", default="cg", choices=["cg", "ipip", "ipip-points"],
+                    help="beamcontact's contact model (ipip: the paper's pairing rule, "
+                    "ipip-points: contact.pairing = \"points\")")
     ap.add_argument("--one", default=None, help=argparse.SUPPRESS)  # worker: law
     ap.add_argument("--out", type=Path, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--table-only", action="store_true", help="only compare existing CSVs")

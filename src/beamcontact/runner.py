@@ -39,7 +39,7 @@ from beamcontact.progress import Progress, ProgressInfo
 from beamcontact.record import RunRecord
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import StaticStep, solve_static
-from beamcontact.summary import contact_summary, effective_settings
+from beamcontact.summary import contact_summary, effective_settings, set_change_warning
 
 ENERGY_COLUMNS = ["E_strain", "E_gravity", "E_ext", "E_contact", "E_total", "min_gap"]
 DYNAMIC_COLUMNS = ["E_kin", *ENERGY_COLUMNS, "E_dissipated", "E_set_change", "p_x", "p_y",
@@ -131,7 +131,9 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
         summary["cg_resolution"] = res.as_dict()
         if res.under_resolved:
             warnings.append(resolution_warning(res, [b.name for b in case.beams]))
-    summary["warnings"] = warnings
+    if contact is not None and contact.law.closest_pairs:
+        warnings.append(set_change_warning(summary.get("energy"), contact.law.pairing))
+    summary["warnings"] = [w for w in warnings if w is not None]
     summary.update({"title": case.title, "kind": case.analysis.kind,
                     "solver": effective_settings(case),
                     "wall_time_s": time.perf_counter() - wall0, "n_dof": model.n_dof,

@@ -87,3 +87,24 @@ def first_excursion_extreme(t: np.ndarray, uy: np.ndarray, level: float = 0.01) 
     end = k0 + (int(back[0]) if back.size else len(uy) - k0)
     k = k0 + int(np.argmax(sign * uy[k0:end]))
     return {"uy": float(uy[k]), "t": float(t[k])}
+
+
+def set_change_warning(energy: dict | None, pairing: str, limit: float = 0.01) -> str | None:
+    """A warning when IPIP's set changes moved the energy by more than ``limit`` of its
+    scale (the larger of the initial total and the largest kinetic energy), else None.
+
+    With the paper's "zones" rule a contact zone that appears while the beams overlap
+    starts with energy (docs/theory.md, "IPIP pairing rules"); the account reports it,
+    and the warning says what to do about it.
+    """
+    if not energy or "E_set_change" not in energy:
+        return None
+    scale = max(abs(energy["E_total_initial"]), energy.get("E_kin_max", 0.0))
+    jump = energy["E_set_change"]
+    if scale <= 0.0 or abs(jump) <= limit * scale:
+        return None
+    advice = ('contact.pairing = "points" makes the contact energy continuous'
+              if pairing == "zones" else "a shorter error_tol or energy_tol reduces it")
+    return (f"IPIP contact-set changes changed the energy by {jump:+.4g} J "
+            f"({100 * jump / scale:+.2g} % of {scale:.4g} J; E_set_change in history.csv); "
+            f"{advice}")

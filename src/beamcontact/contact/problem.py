@@ -94,7 +94,8 @@ class ContactProblem:
         that the kernels skip the rest chunk by chunk."""
         pairs, q = np.asarray(pairs), np.asarray(q)
         W = closest_pair_weights(q, pairs, self.beam_of, self.local_element,
-                                 self.n_elements, q_active=2.0 * motion)
+                                 self.n_elements, q_active=2.0 * motion,
+                                 pairing=self.law.pairing)
         order = np.argsort(~W.any(axis=(1, 2)), kind="stable")
         return ContactSet(pairs[order], W[order], self.law)
 

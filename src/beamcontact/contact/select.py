@@ -1,12 +1,24 @@
 """IPIP: the closest integration-point pairs (paper Sec. 2.1), chosen on the host per step.
 
 For each pair of beams, the discrete distance d(i, j) lives on the grid of their contact
-points. Active pairs are its local minima (no neighbour of the 8-neighbourhood is closer
-by more than a round-off tolerance) with a gap below ``q_active``: one pair per contact
-zone. Local minima that touch form a plateau (straight parallel beams give a valley of
-equal distances): the plateau is one zone and its middle pair is taken, or, for an even
-number of cells, the two middle pairs with weight 1/2 each, so that symmetric problems
-stay symmetric. Cells of a plateau are ordered lexicographically by (i, j).
+points. Two rules choose the pairs that carry the penalty (``Penalty.pairing``):
+
+* ``"zones"`` (the paper's): the local minima of d (no neighbour of the 8-neighbourhood
+  is closer by more than a round-off tolerance) with a gap below ``q_active``: one pair
+  per contact zone. Local minima that touch form a plateau (straight parallel beams give
+  a valley of equal distances): the plateau is one zone and its middle pair is taken, or,
+  for an even number of cells, the two middle pairs with weight 1/2 each, so that
+  symmetric problems stay symmetric. Cells of a plateau are ordered lexicographically by
+  (i, j). The number of zones jumps when a local minimum appears or vanishes, and with it
+  the contact energy if the beams overlap there: this rule is not conservative.
+* ``"points"``: every contact point of either beam with its closest point on the other
+  beam, weight 1/2 from each side (no master and slave), a tie shared equally. The
+  contact energy sum_i 1/2 Pi(min_j d_ij) + sum_j 1/2 Pi(min_i d_ij) is a continuous
+  function of the configuration (a closest partner changes only where two distances are
+  equal), so set changes do not create energy; the contact is distributed along a line
+  contact instead of a point force per zone (the traction the paper anticipates for
+  nearly parallel beams), and the effective stiffness per length is about
+  eps / (point spacing).
 """
 
 import numpy as np
@@ -15,7 +27,7 @@ from scipy import ndimage
 
 def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
                          local_element: np.ndarray, n_elements: np.ndarray, q_active: float,
-                         rtol: float = 1e-9) -> np.ndarray:
+                         rtol: float = 1e-9, pairing: str = "zones") -> np.ndarray:
     """Pair weights W (C, n_s, n_s) of the IPIP model from the block gaps q (C, n_s, n_s).
 
     Args:
@@ -25,42 +37,61 @@ def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
         local_element: index within its beam of every global element.
         n_elements: number of elements of every beam.
         q_active: pairs with a larger gap are left out (they cannot touch in this step).
-        rtol: relative tolerance of "equal distance" on plateaus.
+        rtol: relative tolerance of "equal distance" on plateaus and ties.
+        pairing: "zones" or "points" (module docstring).
     """
     C, ns, _ = q.shape
     W = np.zeros_like(q)
     E = len(beam_of)
     real = np.where(pairs[:, 0] < E)[0]
-    if real.size == 0:
-        return W
     keys = {}
     for c in real:
         keys.setdefault((beam_of[pairs[c, 0]], beam_of[pairs[c, 1]]), []).append(c)
+    rule = _zone_weights if pairing == "zones" else _point_weights
     for (b1, b2), blocks in keys.items():
         n1, n2 = n_elements[b1] * ns, n_elements[b2] * ns
-        grid = np.full((n1 + 2, n2 + 2), np.inf)
-        owner = np.full((n1 + 2, n2 + 2), -1)
+        grid = np.full((n1, n2), np.inf)
+        owner = np.full((n1, n2), -1)
+        start = {}
         for c in blocks:
-            i0 = local_element[pairs[c, 0]] * ns + 1
-            j0 = local_element[pairs[c, 1]] * ns + 1
+            i0 = local_element[pairs[c, 0]] * ns
+            j0 = local_element[pairs[c, 1]] * ns
             grid[i0 : i0 + ns, j0 : j0 + ns] = q[c]
             owner[i0 : i0 + ns, j0 : j0 + ns] = c
-        centre = grid[1:-1, 1:-1]
-        tol = rtol * np.maximum(1.0, np.abs(np.where(np.isfinite(centre), centre, 0.0)))
-        is_min = np.isfinite(centre) & (centre < q_active)
-        for di in (-1, 0, 1):
-            for dj in (-1, 0, 1):
-                if di or dj:
-                    nb = grid[1 + di : n1 + 1 + di, 1 + dj : n2 + 1 + dj]
-                    is_min &= centre <= nb + tol
-        labels, count = ndimage.label(is_min, structure=np.ones((3, 3)))
-        for lab in range(1, count + 1):
-            cells = np.argwhere(labels == lab)  # lexicographic (i, j) order
-            k = len(cells)
-            chosen = [(cells[k // 2], 1.0)] if k % 2 else [(cells[k // 2 - 1], 0.5),
-                                                            (cells[k // 2], 0.5)]
-            for (i, j), weight in chosen:
-                c = owner[i + 1, j + 1]
-                W[c, i - (local_element[pairs[c, 0]] * ns), j - (local_element[pairs[c, 1]] * ns)] \
-                    += weight
+            start[c] = (i0, j0)
+        tol = rtol * np.maximum(1.0, np.abs(np.where(np.isfinite(grid), grid, 0.0)))
+        for (i, j), weight in rule(grid, tol, q_active):
+            c = owner[i, j]
+            W[c, i - start[c][0], j - start[c][1]] += weight
     return W
+
+
+def _zone_weights(grid: np.ndarray, tol: np.ndarray, q_active: float):
+    """(cell, weight) of the "zones" rule: the middle of every plateau of local minima."""
+    n1, n2 = grid.shape
+    padded = np.pad(grid, 1, constant_values=np.inf)
+    is_min = np.isfinite(grid) & (grid < q_active)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di or dj:
+                is_min &= grid <= padded[1 + di : n1 + 1 + di, 1 + dj : n2 + 1 + dj] + tol
+    labels, count = ndimage.label(is_min, structure=np.ones((3, 3)))
+    for lab in range(1, count + 1):
+        cells = np.argwhere(labels == lab)  # lexicographic (i, j) order
+        k = len(cells)
+        if k % 2:
+            yield cells[k // 2], 1.0
+        else:
+            yield cells[k // 2 - 1], 0.5
+            yield cells[k // 2], 0.5
+
+
+def _point_weights(grid: np.ndarray, tol: np.ndarray, q_active: float):
+    """(cell, weight) of the "points" rule: each row's and each column's closest cells,
+    1/2 per side shared equally among ties."""
+    for axis in (1, 0):
+        nearest = np.min(grid, axis=axis, keepdims=True)
+        ties = (grid <= nearest + tol) & (nearest < q_active) & np.isfinite(grid)
+        share = 0.5 / np.maximum(np.sum(ties, axis=axis, keepdims=True), 1)
+        for i, j in np.argwhere(ties):
+            yield (i, j), float(share[(0, j) if axis == 0 else (i, 0)])

@@ -161,6 +161,9 @@ def _check_references(case: Case) -> None:
     if nd not in (1, len(case.beams)):
         raise CaseError(f"contact.densities: give one value per beam ({len(case.beams)}) or "
                         f"one for all, got {nd}")
+    if case.contact.model != "ipip" and case.contact.pairing != "zones":
+        raise CaseError(f"contact.pairing: applies to model \"ipip\" only (model is "
+                        f"\"{case.contact.model}\")")
     if case.contact.model == "cg":
         radii = [b.section.radius if b.section.shape == "circle" else 0.5 * b.section.height
                  for b in case.beams]

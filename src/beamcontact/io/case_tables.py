@@ -251,6 +251,12 @@ class Contact(_Strict):
     -max_penetration is redone with half the step [m] (default: the smallest radius).
     ``capacity``: initial length of the list of candidate element pairs (it grows by
     itself when the broad phase finds more; unused entries cost nothing but memory).
+    ``pairing`` (IPIP only): "zones", the paper's closest pair of integration points of
+    each contact zone (a zone that appears while the beams overlap makes the contact
+    energy jump), or "points", every integration point with its closest point on the
+    other beam, 1/2 from each side (the contact energy is continuous, so the contact is
+    conservative; along a line contact it acts as a line penalty of about eps per point
+    spacing). See docs/theory.md, "IPIP pairing rules".
     """
 
     model: Literal["none", "ipip", "cg"] = "none"
@@ -263,6 +269,7 @@ class Contact(_Strict):
     q_reg: Positive | None = None
     max_penetration: Positive | None = None
     capacity: Annotated[int, Field(ge=1)] = 128
+    pairing: Literal["zones", "points"] = "zones"
     pairs: Annotated[list[Annotated[list[str], BeforeValidator(_as_list),
                                     Field(min_length=2, max_length=2)]],
                      BeforeValidator(_as_list), Field(min_length=1)] | None = None
@@ -273,7 +280,7 @@ class Contact(_Strict):
         from beamcontact.contact.laws import CoarseGrained, Penalty
 
         if self.model == "ipip":
-            return Penalty(self.penalty, self.max_penetration_or(radii))
+            return Penalty(self.penalty, self.max_penetration_or(radii), self.pairing)
         if self.model == "cg":
             q_reg = self.q_reg if self.q_reg is not None else 1e-3 * min(radii)
             return CoarseGrained(self.k, self.exponent, q_reg, self.cutoff)

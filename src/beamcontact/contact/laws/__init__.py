@@ -17,8 +17,9 @@ new penalty value reuses the compiled code). Every law provides
   (:mod:`beamcontact.contact.advance`), i.e. how far into a gap the law lets a pair go
   before its force stops it;
 * ``closest_pairs`` (class attribute): True when the law acts only on the closest point
-  pairs of each contact zone (IPIP, chosen on the host each step), False when it is
-  integrated over all point pairs (coarse-grained).
+  pairs (IPIP, chosen on the host each step by the law's ``pairing`` rule, "zones" or
+  "points", :mod:`beamcontact.contact.select`), False when it is integrated over all
+  point pairs (coarse-grained).
 
 A new law is one more class like these in a file of its own, plus its entry in the case
 schema (``io/case.py``: ``Contact.model``, its parameters and ``Contact.law()``); see

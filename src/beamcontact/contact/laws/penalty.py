@@ -2,7 +2,7 @@
 (:mod:`beamcontact.contact.laws`)."""
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import jax
@@ -13,17 +13,22 @@ import jax.numpy as jnp
 @dataclass(frozen=True)
 class Penalty:
     """IPIP penalty law (eqs. 3-5): Pi = eps q^2 / 2 for q < 0, else 0, acting on the
-    closest pair of integration points of each contact zone.
+    closest pairs of integration points.
 
     Attributes:
         penalty: eps [N/m].
         max_penetration: a step whose smallest gap falls below -max_penetration is redone
             shorter [m]; also the advancement slack (the force acts only once the beams
             overlap).
+        pairing: which pairs are closest (:mod:`beamcontact.contact.select`): "zones",
+            the paper's closest pair of each contact zone, or "points", every point with
+            its closest point on the other beam (a conservative variant). Static: a
+            change recompiles nothing on the device (the selection runs on the host).
     """
 
     penalty: float
     max_penetration: float
+    pairing: str = field(default="zones", metadata=dict(static=True))
 
     closest_pairs: ClassVar[bool] = True
 
