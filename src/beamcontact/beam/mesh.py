@@ -72,10 +72,9 @@ def build_mesh(curve: NurbsCurve, n_qp: int | None = None) -> BeamMesh:
         uq = 0.5 * (b - a) * x + 0.5 * (a + b)
         xi_qp[e] = uq
         wq[e] = 0.5 * (b - a) * w
-        for q, u in enumerate(uq):
-            first, d = nurbs_basis_derivatives(curve.knots, p, curve.weights, u)
-            ders[:, e, q] = d
-        conn[e] = np.arange(first, first + p + 1)
+        first, d = nurbs_basis_derivatives(curve.knots, p, curve.weights, uq)
+        ders[:, e] = d.transpose(1, 0, 2)
+        conn[e] = np.arange(first[-1], first[-1] + p + 1)
     return BeamMesh(curve=curve, conn=conn, breaks=breaks, R=ders[0], dR=ders[1],
                     ddR=ders[2], wq=wq, xi_qp=xi_qp)
 

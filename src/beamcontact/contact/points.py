@@ -53,15 +53,14 @@ def contact_elements(disc, segments: int, betas, beam_pairs=None) -> ContactElem
         p = curve.degree
         for e, (a, b) in enumerate(zip(mesh.breaks[:-1], mesh.breaks[1:], strict=True)):
             edges = np.linspace(a, b, segments + 1)
+            u0, u1 = edges[:-1, None], edges[1:, None]
             R = np.zeros((segments, n_loc))
-            w = np.zeros(segments)
-            for s in range(segments):
-                u0, u1 = edges[s], edges[s + 1]
-                _, d = nurbs_basis_derivatives(curve.knots, p, curve.weights, 0.5 * (u0 + u1))
-                R[s, : p + 1] = d[0]
-                uq = 0.5 * (u1 - u0) * x + 0.5 * (u0 + u1)
-                speed = np.linalg.norm(curve.evaluate(uq, 1)[1], axis=1)
-                w[s] = 0.5 * (u1 - u0) * speed @ gw
+            _, d = nurbs_basis_derivatives(curve.knots, p, curve.weights, 0.5 * (u0 + u1)[:, 0])
+            R[:, : p + 1] = d[:, 0]
+            uq = 0.5 * (u1 - u0) * x + 0.5 * (u0 + u1)  # (segments, Gauss points)
+            speed = np.linalg.norm(curve.evaluate(uq.ravel(), 1)[1], axis=1).reshape(uq.shape)
+            # one dot product per segment, as the weights have always been summed
+            w = np.array([row @ gw for row in 0.5 * (u1 - u0) * speed])
             c = np.zeros(n_loc, dtype=np.int64)
             c[: p + 1] = mesh.conn[e] + info.offset
             conn.append(c)

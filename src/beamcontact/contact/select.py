@@ -49,25 +49,21 @@ def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
         keys.setdefault((beam_of[pairs[c, 0]], beam_of[pairs[c, 1]]), []).append(c)
     rule = _zone_weights if pairing == "zones" else _point_weights
     for (b1, b2), blocks in keys.items():
-        n1, n2 = n_elements[b1] * ns, n_elements[b2] * ns
-        grid = np.full((n1, n2), np.inf)
-        owner = np.full((n1, n2), -1)
-        start = {}
-        for c in blocks:
-            i0 = local_element[pairs[c, 0]] * ns
-            j0 = local_element[pairs[c, 1]] * ns
+        grid = np.full((n_elements[b1] * ns, n_elements[b2] * ns), np.inf)
+        corners = [(local_element[pairs[c, 0]] * ns, local_element[pairs[c, 1]] * ns)
+                   for c in blocks]
+        for c, (i0, j0) in zip(blocks, corners, strict=True):
             grid[i0 : i0 + ns, j0 : j0 + ns] = q[c]
-            owner[i0 : i0 + ns, j0 : j0 + ns] = c
-            start[c] = (i0, j0)
         tol = rtol * np.maximum(1.0, np.abs(np.where(np.isfinite(grid), grid, 0.0)))
-        for (i, j), weight in rule(grid, tol, q_active):
-            c = owner[i, j]
-            W[c, i - start[c][0], j - start[c][1]] += weight
+        weights = rule(grid, tol, q_active)
+        for c, (i0, j0) in zip(blocks, corners, strict=True):
+            W[c] = weights[i0 : i0 + ns, j0 : j0 + ns]
     return W
 
 
-def _zone_weights(grid: np.ndarray, tol: np.ndarray, q_active: float):
-    """(cell, weight) of the "zones" rule: the middle of every plateau of local minima."""
+def _zone_weights(grid: np.ndarray, tol: np.ndarray, q_active: float) -> np.ndarray:
+    """Weights on the grid of the "zones" rule: the middle of every plateau of local
+    minima."""
     n1, n2 = grid.shape
     padded = np.pad(grid, 1, constant_values=np.inf)
     is_min = np.isfinite(grid) & (grid < q_active)
@@ -76,22 +72,25 @@ def _zone_weights(grid: np.ndarray, tol: np.ndarray, q_active: float):
             if di or dj:
                 is_min &= grid <= padded[1 + di : n1 + 1 + di, 1 + dj : n2 + 1 + dj] + tol
     labels, count = ndimage.label(is_min, structure=np.ones((3, 3)))
+    weights = np.zeros_like(grid)
     for lab in range(1, count + 1):
         cells = np.argwhere(labels == lab)  # lexicographic (i, j) order
         k = len(cells)
         if k % 2:
-            yield cells[k // 2], 1.0
+            weights[tuple(cells[k // 2])] += 1.0
         else:
-            yield cells[k // 2 - 1], 0.5
-            yield cells[k // 2], 0.5
+            weights[tuple(cells[k // 2 - 1])] += 0.5
+            weights[tuple(cells[k // 2])] += 0.5
+    return weights
 
 
-def _point_weights(grid: np.ndarray, tol: np.ndarray, q_active: float):
-    """(cell, weight) of the "points" rule: each row's and each column's closest cells,
-    1/2 per side shared equally among ties."""
+def _point_weights(grid: np.ndarray, tol: np.ndarray, q_active: float) -> np.ndarray:
+    """Weights on the grid of the "points" rule: each row's and each column's closest
+    cells, 1/2 per side shared equally among ties."""
+    weights = np.zeros_like(grid)
     for axis in (1, 0):
         nearest = np.min(grid, axis=axis, keepdims=True)
         ties = (grid <= nearest + tol) & (nearest < q_active) & np.isfinite(grid)
         share = 0.5 / np.maximum(np.sum(ties, axis=axis, keepdims=True), 1)
-        for i, j in np.argwhere(ties):
-            yield (i, j), float(share[(0, j) if axis == 0 else (i, 0)])
+        weights += np.where(ties, share, 0.0)
+    return weights

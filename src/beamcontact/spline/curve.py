@@ -50,9 +50,9 @@ class NurbsCurve:
         """Dense rational basis (and derivatives) at parameters u: shape (nders+1, len(u), n)."""
         u = np.atleast_1d(np.asarray(u, float))
         out = np.zeros((3, len(u), self.n_points))
-        for k, uk in enumerate(u):
-            first, ders = nurbs_basis_derivatives(self.knots, self.degree, self.weights, uk)
-            out[:, k, first : first + self.degree + 1] = ders
+        first, ders = nurbs_basis_derivatives(self.knots, self.degree, self.weights, u)
+        rows = np.arange(len(u))[:, None]
+        out[:, rows, first[:, None] + np.arange(self.degree + 1)] = ders.transpose(1, 0, 2)
         return out[: nders + 1]
 
     def evaluate(self, u: np.ndarray, nders: int = 0) -> np.ndarray:

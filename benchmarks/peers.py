@@ -1,0 +1,225 @@
+"""Wall time of beamcontact against the peer codes, side by side (issue 12 targets).
+
+Runs, each in its own process, one after the other on this machine:
+
+* ``drop``: the peer drop of benchmarks/peers (4 m beam onto a pinned 10 m beam,
+  E = 1e7 Pa), 2 s simulated: PyElastica at dt = 1e-4 s and at its largest stable step
+  (the first of ``--pyelastica-dt-large`` times 1, 0.8, 0.8^2, ... that runs),
+  Exudyn at dt = 1e-3 s, and ``beamcontact run`` (every default output written) for each
+  of ``--models``;
+* ``stiff``: the same drop with E = 1e9 Pa, 0.5 s simulated: PyElastica at dt = 1e-5 s and
+  ``beamcontact run``;
+* ``bundled``: ``beamcontact run`` of the bundled benchmark (3 s, every output), with the
+  compilation cache warm and, once, cold (a fresh cache folder);
+* ``scaling``: the cost per step of one pinned beam vibrating without contact with 100
+  and with 800 quartic elements (fixed steps: ``error_tol = 0``).
+
+Wall times: the peers' *step loop* (as their scripts print it: numba or C++ compiled, the
+energy sampling of PyElastica excluded), beamcontact's *whole process* (start of Python,
+case check, compilation from the warm cache, step loop, every output file: plots,
+animation, ParaView series), plus its step-loop time from summary.json. Before the timed
+runs beamcontact runs each case once, untimed, to fill the compilation cache (targets 1,
+2 and 4 are "after compilation"). Prints one table per case with the time, the ratio to
+the slowest reference and the largest |difference| of the midspan deflection A_uy from the
+first code of the table.
+
+    pip install ".[peers]"                      # PyElastica and Exudyn
+    python benchmarks/peers.py [--cases drop stiff bundled scaling] [--repeat 3]
+
+A full run takes 15-25 minutes here (the bundled benchmark alone about 6 minutes per run
+today). Numbers and machine: benchmarks/README.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+PEERS = HERE / "peers"
+REPO = HERE.parent
+sys.path.insert(0, str(PEERS))
+
+
+def _run(cmd: list[str], env: dict | None = None) -> tuple[float, str]:
+    """Run cmd; (wall seconds of the whole process, stdout). Fails loudly."""
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})})
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+    return wall, proc.stdout
+
+
+def _loop_time(stdout: str) -> float:
+    """The step-loop time a peer script prints."""
+    m = re.search(r"wall time: step loop ([0-9.]+) s", stdout) or \
+        re.search(r"wall time \(SolveDynamic[^)]*\): ([0-9.]+) s", stdout)
+    if m is None:
+        raise RuntimeError(f"no wall time in:\n{stdout}")
+    return float(m.group(1))
+
+
+def pyelastica(dt: float, t_end: float, out: Path, E: float) -> dict:
+    wall, stdout = _run([sys.executable, str(PEERS / "drop_pyelastica.py"), "--dt", f"{dt:g}",
+                         "--t-end", f"{t_end:g}", "--out", str(out)], {"PEER_E": f"{E:g}"})
+    return {"code": f"PyElastica dt={dt:g}", "time": _loop_time(stdout), "process": wall,
+            "csv": out}
+
+
+def largest_stable(dt: float, t_end: float, out: Path, E: float) -> dict:
+    """PyElastica at the largest step of dt, 0.8 dt, 0.8^2 dt, ... that stays stable (its
+    script stops with an error when the state explodes)."""
+    while True:
+        try:
+            return pyelastica(dt, t_end, out, E)
+        except RuntimeError as exc:
+            if "unstable" not in str(exc) or dt < 1e-5:
+                raise
+            print(f"PyElastica unstable at dt = {dt:.3g} s; trying {0.8 * dt:.3g} s",
+                  flush=True)
+            dt *= 0.8
+
+
+def exudyn(dt: float, t_end: float, out: Path, E: float) -> dict:
+    wall, stdout = _run([sys.executable, str(PEERS / "drop_exudyn.py"), "--dt", f"{dt:g}",
+                         "--t-end", f"{t_end:g}", "--no-energy", "--out", str(out)],
+                        {"PEER_E": f"{E:g}"})
+    return {"code": f"Exudyn dt={dt:g}", "time": _loop_time(stdout), "process": wall,
+            "csv": out}
+
+
+def beamcontact_run(case: Path | None, out: Path, label: str, env: dict | None = None) -> dict:
+    """``beamcontact run`` as a user types it; the whole process is timed."""
+    cmd = [sys.executable, "-m", "beamcontact.cli", "run"] + ([str(case)] if case else []) \
+        + ["--out", str(out), "--quiet"]
+    wall, _ = _run(cmd, env)
+    summary = json.loads((out / "summary.json").read_text())
+    return {"code": label, "time": wall, "process": wall, "csv": out / "history.csv",
+            "loop": summary["solve_time_s"], "steps": summary["steps"],
+            "iterations": summary["newton_iterations"],
+            "compile": summary.get("compile_time_s", 0.0)}
+
+
+def _drop_case_file(model: str, t_end: float, E: float, folder: Path) -> Path:
+    import tomli_w
+    from compare import drop_case
+
+    case = drop_case(model, t_end=t_end, E=E)
+    case["output"]["vtk_interval"] = t_end / 100  # the default cadence
+    path = folder / f"drop_{model}_E{E:g}.toml"
+    path.write_text(tomli_w.dumps(case))
+    return path
+
+
+def _deviation(ref: Path, other: Path, t_end: float) -> float:
+    """Largest |A_uy difference| [m] between two result CSVs on a common grid."""
+    grid = np.linspace(0.0, t_end, 4001)
+    curves = []
+    for p in (ref, other):
+        d = np.genfromtxt(p, delimiter=",", names=True)
+        curves.append(np.interp(grid, d["t"], d["A_uy"]))
+    return float(np.max(np.abs(curves[0] - curves[1])))
+
+
+def _table(title: str, rows: list[dict], t_end: float | None) -> None:
+    print(f"\n{title}")
+    print("| code | wall [s] | ratio to this | step loop [s] | steps | Newton it. | "
+          "max dev. of A_uy from the first [cm] |")
+    print("|---|---|---|---|---|---|---|")
+    ref = rows[0]
+    for r in rows:
+        dev = "" if t_end is None else f"{100 * _deviation(ref['csv'], r['csv'], t_end):.2f}"
+        print(f"| {r['code']} | {r['time']:.2f} | {ref['time'] / r['time']:.2f} | "
+              f"{r.get('loop', r['time']):.2f} | {r.get('steps', '')} | "
+              f"{r.get('iterations', '')} | {dev} |")
+
+
+def case_drop(tmp: Path, args, E: float = 1.0e7, t_end: float = 2.0, stiff: bool = False):
+    rows = []
+    rows.append(pyelastica(1e-5 if stiff else 1e-4, t_end, tmp / f"pe_{E:g}.csv", E))
+    if not stiff:
+        rows.append(largest_stable(args.pyelastica_dt_large, t_end, tmp / "pe_large.csv", E))
+    if not stiff:
+        rows.append(exudyn(1e-3, t_end, tmp / f"ex_{E:g}.csv", E))
+    for model in args.models:
+        case = _drop_case_file(model, t_end, E, tmp)
+        beamcontact_run(case, tmp / f"warm_{model}", "warm-up")
+        rows.append(beamcontact_run(case, tmp / f"bc_{model}_{E:g}", f"beamcontact {model}"))
+    _table(f"{'stiff drop (E = 1e9 Pa), 0.5 s' if stiff else 'peer drop (E = 1e7 Pa), 2 s'}"
+           " simulated", rows, t_end)
+
+
+def case_bundled(tmp: Path, args):
+    rows = [beamcontact_run(None, tmp / "bundled_cold", "bundled, cold cache",
+                            {"BEAMCONTACT_CACHE_DIR": str(tmp / "fresh_cache")})]
+    rows.append(beamcontact_run(None, tmp / "bundled_warm", "bundled, warm cache",
+                                {"BEAMCONTACT_CACHE_DIR": str(tmp / "fresh_cache")}))
+    _table("bundled benchmark, 3 s simulated (the cold run compiles "
+           f"{rows[0]['compile']:.1f} s in its first step)", rows, 3.0)
+
+
+def case_scaling(tmp: Path, args):
+    import tomli_w
+
+    rows = []
+    for n in (100, 800):
+        case = {"analysis": {"kind": "dynamic", "t_end": 0.01, "dt": 1e-4, "alpha": -0.1,
+                             "gravity": [0.0, -9.81]},
+                "beams": [{"name": "beam", "line": {"start": [0.0, 0.0], "end": [10.0, 0.0]},
+                           "degree": 4, "elements": n, "continuity": 3,
+                           "section": {"shape": "circle", "radius": 0.1},
+                           "material": {"E": 1e7, "density": 1000.0},
+                           "supports": [{"at": "start", "type": "pinned"},
+                                        {"at": "end", "type": "pinned"}]}],
+                "solver": {"error_tol": 0.0},
+                "output": {"points": [{"name": "A", "beam": "beam", "at": 0.5}]}}
+        path = tmp / f"scaling_{n}.toml"
+        path.write_text(tomli_w.dumps(case))
+        beamcontact_run(path, tmp / f"warm_s{n}", "warm-up")
+        r = beamcontact_run(path, tmp / f"scaling_{n}", f"{n} elements")
+        r["time"] = r["loop"] / r["steps"] * 1e3  # ms per step
+        rows.append(r)
+    print("\ncost per step, one beam without contact (fixed steps)")
+    print("| elements | ms per step | Newton it. per step | ratio to 100 elements |")
+    print("|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['code']} | {r['time']:.3f} | {r['iterations'] / r['steps']:.2f} | "
+              f"{r['time'] / rows[0]['time']:.1f} |")
+
+
+CASES = {"drop": case_drop, "stiff": lambda tmp, a: case_drop(tmp, a, 1.0e9, 0.5, True),
+         "bundled": case_bundled, "scaling": case_scaling}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", nargs="+", choices=list(CASES), default=list(CASES))
+    ap.add_argument("--models", nargs="+", default=["ipip-points", "cg"],
+                    choices=["cg", "ipip", "ipip-points"], help="beamcontact contact models")
+    ap.add_argument("--pyelastica-dt-large", type=float, default=4e-4,
+                    help="the first step tried for PyElastica's largest stable step at its "
+                    "default mesh; 0.8 times shorter until it is stable [s]")
+    ap.add_argument("--repeat", type=int, default=1, help="run every case this many times")
+    args = ap.parse_args()
+    print(f"machine: {os.cpu_count()} cores; python {sys.version.split()[0]}; "
+          f"{time.strftime('%Y-%m-%d %H:%M')}")
+    for k in range(args.repeat):
+        for name in args.cases:
+            with tempfile.TemporaryDirectory() as tmp:
+                print(f"\n## {name} (run {k + 1} of {args.repeat})", flush=True)
+                CASES[name](Path(tmp), args)
+                sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
