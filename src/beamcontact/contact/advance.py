@@ -25,7 +25,7 @@ the solve, to the actual displacement of the step.
 
 import jax.numpy as jnp
 
-from beamcontact.contact.blocks import _block_geometry
+from beamcontact.contact.blocks import _block_geometry, over_real_chunks
 from beamcontact.contact.points import ContactElements
 
 
@@ -43,14 +43,18 @@ def approach_ratio(x0, displacements, ce: ContactElements, pairs, slack):
     Returns 0 when no pair approaches; pairs with less room than s / 100 are left out
     (they are in contact: the contact law, not the advancement, governs them).
     """
-    (_, _, r1, _), (_, _, r2, _), r = _block_geometry(x0, ce, pairs)
-    d = jnp.sqrt(jnp.sum(r * r, axis=-1))
-    n = r / jnp.maximum(d, 1e-300)[..., None]
-    approach = 0.0
-    for field in displacements:
-        dr = _block_geometry(field, ce, pairs)[2]
-        approach = approach + jnp.maximum(-jnp.sum(n * dr, axis=-1), 0.0)
-    room = d - (r1 + r2)[:, None, None] + slack
-    real = (pairs[:, 0] < ce.n_elements)[:, None, None] & (room > 1e-2 * slack)
-    return jnp.max(jnp.where(real, approach / jnp.where(real, room, 1.0), 0.0),
-                   initial=0.0)
+
+    def largest(chunk):  # per block of the chunk
+        (_, _, r1, _), (_, _, r2, _), r = _block_geometry(x0, ce, chunk)
+        d = jnp.sqrt(jnp.sum(r * r, axis=-1))
+        n = r / jnp.maximum(d, 1e-300)[..., None]
+        approach = 0.0
+        for field in displacements:
+            dr = _block_geometry(field, ce, chunk)[2]
+            approach = approach + jnp.maximum(-jnp.sum(n * dr, axis=-1), 0.0)
+        room = d - (r1 + r2)[:, None, None] + slack
+        real = (chunk[:, 0] < ce.n_elements)[:, None, None] & (room > 1e-2 * slack)
+        return jnp.max(jnp.where(real, approach / jnp.where(real, room, 1.0), 0.0),
+                       axis=(1, 2), initial=0.0)
+
+    return jnp.max(over_real_chunks(largest, ce, pairs, 0.0), initial=0.0)

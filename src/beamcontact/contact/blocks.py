@@ -92,10 +92,38 @@ def arc_length_weights(ce: ContactElements, pairs):
     return jnp.where(valid, ce.w[e1][:, :, None] * ce.w[e2][:, None, :], 0.0)
 
 
+def over_real_chunks(f, ce: ContactElements, pairs, fill):
+    """``f(chunk)`` over the block list in chunks of CHUNK blocks, concatenated; a chunk
+    with no real block is not evaluated and gives ``fill`` (its output shape).
+
+    The lists put their real blocks first (the broad phase, the culling and the IPIP
+    selection all do), so the cost follows the number of candidates, not the capacity:
+    in free flight a step's checks over a list of 128 empty slots cost nothing.
+    """
+    C = pairs.shape[0]
+    size = CHUNK if C % CHUNK == 0 else C
+    chunks = pairs.reshape(C // size, size, 2)
+    shape = jax.eval_shape(f, chunks[0])
+
+    def skip(_):
+        return jnp.full(shape.shape, fill, shape.dtype)
+
+    def body(carry, chunk):
+        return carry, jax.lax.cond(jnp.any(chunk[:, 0] < ce.n_elements), f, skip, chunk)
+
+    out = jax.lax.scan(body, None, chunks)[1]
+    return out.reshape(C, *out.shape[2:])
+
+
 def block_distances(x, ce: ContactElements, pairs):
-    """Centre-line distances of all point pairs of each block, shape (C, n_s, n_s)."""
-    r = _block_geometry(x, ce, pairs)[2]
-    return jnp.sqrt(jnp.sum(r * r, axis=-1))
+    """Centre-line distances of all point pairs of each block, shape (C, n_s, n_s)
+    (+inf in chunks of padding blocks, which are skipped)."""
+
+    def distances(chunk):
+        r = _block_geometry(x, ce, chunk)[2]
+        return jnp.sqrt(jnp.sum(r * r, axis=-1))
+
+    return over_real_chunks(distances, ce, pairs, jnp.inf)
 
 
 def near_blocks(x, ce: ContactElements, pairs, limit):
@@ -113,9 +141,10 @@ def near_blocks(x, ce: ContactElements, pairs, limit):
     return jnp.where(keep[order][:, None], pairs[order], ce.pairs[-1])
 
 
-def block_gaps(x, ce: ContactElements, pairs):
-    """Surface gaps q = d - R1 - R2 of all point pairs of real blocks (+inf for padding)."""
-    d = block_distances(x, ce, pairs)
+def block_gaps(x, ce: ContactElements, pairs, d=None):
+    """Surface gaps q = d - R1 - R2 of all point pairs of real blocks (+inf for padding);
+    ``d``: their :func:`block_distances`, when already at hand."""
+    d = block_distances(x, ce, pairs) if d is None else d
     _, _, r1, _ = _gather(ce, pairs[:, 0])
     _, _, r2, _ = _gather(ce, pairs[:, 1])
     q = d - (r1 + r2)[:, None, None]

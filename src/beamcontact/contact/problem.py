@@ -179,9 +179,10 @@ def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: int):
     pairs, count = candidate_pairs(x, ce, reach, capacity)
     E = ce.n_elements
     key = lambda p: p[:, 0] * (E + 1) + p[:, 1]  # noqa: E731
-    near = jnp.min(block_distances(x, ce, pairs), axis=(1, 2)) < interaction
+    d = block_distances(x, ce, pairs)
+    near = jnp.min(d, axis=(1, 2)) < interaction
     found = jnp.isin(key(pairs), key(frozen_pairs)) | (pairs[:, 0] >= E) | ~near
-    gap = jnp.min(block_gaps(x, ce, pairs))
+    gap = jnp.min(block_gaps(x, ce, pairs, d))
     gap = jnp.where(jnp.isfinite(gap), gap, box_gap_lower_bound(x, ce))
     return ~jnp.all(found), count, gap
 
