@@ -204,7 +204,7 @@ def test_ipip_plateau_takes_the_middle_pairs():
         q = np.full((1, ns, ns), 1.0)
         q[0, np.arange(ns), np.arange(ns)] = -0.01
         W = closest_pair_weights(q, np.array([[0, 1]]), np.array([0, 1]), np.array([0, 0]),
-                                 np.array([1, 1]), q_active=0.1)
+                                 q_active=0.1)
         weights = W[0][W[0] > 0]
         assert sorted(weights) == sorted(expected[0])
         idx = np.argwhere(W[0] > 0)
@@ -219,8 +219,7 @@ def _pairing_energy(q, pairing, blocks=((0, 1),), n_elements=(1, 1)):
     pairs = np.array(blocks)
     beam_of = np.array([0] * n_elements[0] + [1] * n_elements[1])
     local = np.array(list(range(n_elements[0])) + list(range(n_elements[1])))
-    W = closest_pair_weights(q, pairs, beam_of, local, np.array(n_elements), q_active=0.1,
-                             pairing=pairing)
+    W = closest_pair_weights(q, pairs, beam_of, local, q_active=0.1, pairing=pairing)
     return np.sum(W * np.minimum(q, 0.0) ** 2), W
 
 

@@ -25,4 +25,4 @@ def build_contact(case, disc) -> ContactProblem | None:
         local[e] = n_el[b]
         n_el[b] += 1
     return ContactProblem(law, ce, float(law.search_reach(max(radii))),
-                          c.max_penetration_or(radii), beam_of, local, n_el)
+                          c.max_penetration_or(radii), beam_of, local)

@@ -55,7 +55,7 @@ class ContactProblem:
             ``search_reach`` for the largest radius).
         max_penetration: a step whose smallest gap is below -max_penetration is redone
             with a smaller time step.
-        beam_of, local_element, n_elements: numbering used by the closest-pair selection.
+        beam_of, local_element: numbering used by the closest-pair selection.
     """
 
     law: ContactLaw
@@ -64,7 +64,6 @@ class ContactProblem:
     max_penetration: float
     beam_of: np.ndarray
     local_element: np.ndarray
-    n_elements: np.ndarray
 
     @property
     def interaction(self) -> float:
@@ -94,8 +93,7 @@ class ContactProblem:
         that the kernels skip the rest chunk by chunk."""
         pairs, q = np.asarray(pairs), np.asarray(q)
         W = closest_pair_weights(q, pairs, self.beam_of, self.local_element,
-                                 self.n_elements, q_active=2.0 * motion,
-                                 pairing=self.law.pairing)
+                                 q_active=2.0 * motion, pairing=self.law.pairing)
         order = np.argsort(~W.any(axis=(1, 2)), kind="stable")
         return ContactSet(pairs[order], W[order], self.law)
 

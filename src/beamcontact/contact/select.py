@@ -26,8 +26,8 @@ from scipy import ndimage
 
 
 def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
-                         local_element: np.ndarray, n_elements: np.ndarray, q_active: float,
-                         rtol: float = 1e-9, pairing: str = "zones") -> np.ndarray:
+                         local_element: np.ndarray, q_active: float, rtol: float = 1e-9,
+                         pairing: str = "zones") -> np.ndarray:
     """Pair weights W (C, n_s, n_s) of the IPIP model from the block gaps q (C, n_s, n_s).
 
     Args:
@@ -35,7 +35,6 @@ def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
         pairs: the blocks' global element indices (C, 2); padding rows are >= E.
         beam_of: beam of every global element.
         local_element: index within its beam of every global element.
-        n_elements: number of elements of every beam.
         q_active: pairs with a larger gap are left out (they cannot touch in this step).
         rtol: relative tolerance of "equal distance" on plateaus and ties.
         pairing: "zones" or "points" (module docstring).
@@ -48,10 +47,13 @@ def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
     for c in real:
         keys.setdefault((beam_of[pairs[c, 0]], beam_of[pairs[c, 1]]), []).append(c)
     rule = _zone_weights if pairing == "zones" else _point_weights
-    for (b1, b2), blocks in keys.items():
-        grid = np.full((n_elements[b1] * ns, n_elements[b2] * ns), np.inf)
-        corners = [(local_element[pairs[c, 0]] * ns, local_element[pairs[c, 1]] * ns)
-                   for c in blocks]
+    for blocks in keys.values():
+        # the grid spans the candidate blocks only: every cell outside them is +inf, so
+        # neither rule can choose it or be changed by it
+        corners = np.array([(local_element[pairs[c, 0]] * ns, local_element[pairs[c, 1]] * ns)
+                            for c in blocks])
+        corners -= corners.min(axis=0)
+        grid = np.full(tuple(corners.max(axis=0) + ns), np.inf)
         for c, (i0, j0) in zip(blocks, corners, strict=True):
             grid[i0 : i0 + ns, j0 : j0 + ns] = q[c]
         tol = rtol * np.maximum(1.0, np.abs(np.where(np.isfinite(grid), grid, 0.0)))

@@ -1,0 +1,131 @@
+"""Device time of the pieces of one time-step attempt of the peer drop, in contact.
+
+Runs the peer drop of benchmarks/peers (``--model`` ipip-points, ipip or cg) to
+``--t`` seconds (into the first impact by default), reads the last state back from
+results.h5 like a restart, and times each piece of one attempt jitted alone (best of 5,
+BLAS on one thread as in ``beamcontact run``): the whole fused attempt, its Newton solve,
+one assembly with and without contact, one dense LU solve, the diagnostics, the post-step
+check, the advancement ratio, and for IPIP the candidate dispatch and the host selection.
+
+    python benchmarks/step_pieces.py [--model cg] [--t 0.76] [--h 2e-5]
+
+The run to --t is kept in --out (default results_step_pieces/) and reused.
+"""
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import beamcontact
+
+beamcontact.enable_x64()
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "peers"))
+from compare import MODELS, drop_case  # noqa: E402
+
+from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
+from beamcontact.build.contact import build_contact  # noqa: E402
+from beamcontact.build.model import build_model  # noqa: E402
+from beamcontact.contact.advance import approach_ratio  # noqa: E402
+from beamcontact.contact.problem import freeze, missed_blocks  # noqa: E402
+from beamcontact.dynamics.hht import hht_step  # noqa: E402
+from beamcontact.dynamics.step import (  # noqa: E402
+    closest_pair_candidates,
+    diagnostics,
+    fused_step,
+    positions,
+)
+from beamcontact.io.case import parse_case  # noqa: E402
+from beamcontact.runner import _discretize, _restart_state, run_case  # noqa: E402
+
+
+def best_ms(f, n=30) -> float:
+    """Best of 5 means over n calls, in ms, after one warm-up call."""
+    jax.block_until_ready(f())
+    best = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        for _ in range(n):
+            r = f()
+        jax.block_until_ready(r)
+        best.append((time.perf_counter() - t0) / n)
+    return 1e3 * min(best)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", default="ipip-points", choices=MODELS)
+    ap.add_argument("--t", type=float, default=0.76, help="time of the state [s]")
+    ap.add_argument("--h", type=float, default=2e-5, help="step of the attempt [s]")
+    ap.add_argument("--out", type=Path, default=Path("results_step_pieces"))
+    a = ap.parse_args()
+    case = parse_case(drop_case(a.model, t_end=a.t))
+    out = a.out / f"{a.model}_{a.t:g}"
+    if not (out / "results.h5").exists():
+        run_case(case, case.to_toml(), out)
+    disc = _discretize(case)
+    model, disc = build_model(case, disc)
+    contact = build_contact(case, disc)
+    state, _ = _restart_state(case, out, model)
+    h, cap, search = np.float64(a.h), case.contact.capacity, contact.search
+    rows = []
+    with threadpool_limits(limits=1, user_api="blas"):
+        cs_host = None
+        if contact.law.closest_pairs:
+            def candidates():
+                return closest_pair_candidates(state, model, h, np.float64(1.0), search,
+                                               capacity=cap)
+            pairs, q, _, motion = jax.device_get(candidates())
+            cs = cs_host = contact.closest_pair_set(pairs, q, float(motion))
+            rows += [("IPIP candidate dispatch", best_ms(candidates)),
+                     ("IPIP host selection",
+                      best_ms(lambda: contact.closest_pair_set(pairs, q, float(motion))))]
+        else:
+            cs, _ = contact.frozen_set(positions(state.u, model), 0.01, cap)
+        real = int(np.sum(np.asarray(cs.pairs)[:, 0] < search.elements.n_elements))
+        args = (state, model, h, np.float64(0.0), np.float64(1e-9), np.float64(1e-10),
+                np.float64(1e-3), np.float64(1.0), search, cs_host)
+        counts = fused_step(*args, max_iterations=25, capacity=cap)[2]
+        rows.append((f"whole fused attempt ({int(counts[1])} Newton iterations)",
+                     best_ms(lambda: fused_step(*args, max_iterations=25, capacity=cap))))
+        fc = freeze(contact, cs)
+        newton = jax.jit(hht_step, static_argnames=("max_iterations",))
+        rows.append(("HHT Newton solve alone", best_ms(
+            lambda: newton(state, model, h, 0.0, 1e-9, 1e-12, max_iterations=25,
+                           contact=fc))))
+        assemble = jax.jit(residual_tangent_with_contact)
+        ls = state.load_state
+        rows += [("one assembly without contact",
+                  best_ms(lambda: assemble(state.u, model, 1.0, ls, None))),
+                 ("one assembly with contact",
+                  best_ms(lambda: assemble(state.u, model, 1.0, ls, fc)))]
+        K = assemble(state.u, model, 1.0, ls, fc)[1]
+        solve = jax.jit(jnp.linalg.solve)
+        rows.append((f"one dense LU solve ({K.shape[0]} dofs)",
+                     best_ms(lambda: solve(K, state.u))))
+        rows.append(("diagnostics", best_ms(lambda: diagnostics(state, model, fc))))
+        x0 = positions(state.u, model)
+        check = jax.jit(missed_blocks, static_argnames=("capacity",))
+        rows.append(("post-step check", best_ms(
+            lambda: check(x0, search.elements, cs.pairs, search.reach,
+                          search.law.interaction_distance(), capacity=cap))))
+        ratio = jax.jit(approach_ratio)
+        rows.append(("advancement ratio", best_ms(
+            lambda: ratio(x0, (1e-6 * x0,), search.elements, cs.pairs,
+                          search.law.advance_slack()))))
+    print(f"peer drop, {a.model}, state at t = {a.t:g} s, h = {a.h:g} s, {real} candidate "
+          f"blocks in the list")
+    print("| piece | ms |\n|---|---|")
+    for name, ms in rows:
+        print(f"| {name} | {ms:.3f} |")
+
+
+if __name__ == "__main__":
+    main()
