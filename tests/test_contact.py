@@ -247,6 +247,28 @@ def test_ipip_points_pairs_every_point_with_its_closest():
     assert W[0, 1, 0] == W[0, 1, 2] == pytest.approx(0.25 + 0.5)
 
 
+def test_ipip_points_weights_on_the_device_equal_the_host_rule():
+    """The device's "points" selection (segment minima) gives the host grid rule's
+    weights exactly, with three beams (two grids per point of the middle beam), ties and
+    padding blocks."""
+    from types import SimpleNamespace
+
+    from beamcontact.contact.select import point_weights_on_device
+
+    rng = np.random.default_rng(7)
+    beam_of = np.array([0, 0, 1, 1, 1, 2, 2])
+    local = np.array([0, 1, 0, 1, 2, 0, 1])
+    pairs = np.array([[0, 2], [0, 3], [1, 3], [1, 4], [2, 5], [3, 5], [4, 6], [0, 6],
+                      [7, 7], [7, 7]])
+    q = np.round(rng.uniform(-0.05, 0.3, size=(len(pairs), 4, 4)), 2)  # with ties
+    q[pairs[:, 0] >= 7] = np.inf
+    host = closest_pair_weights(q, pairs, beam_of, local, q_active=0.2, pairing="points")
+    ce = SimpleNamespace(n_elements=7, n_beams=3, beam=jnp.asarray(beam_of))
+    device = point_weights_on_device(jnp.asarray(q), jnp.asarray(pairs), ce, 0.2)
+    np.testing.assert_array_equal(np.asarray(device), host)
+    assert np.sum(host) > 0 and np.any((host > 0) & (host < 0.5))  # ties were shared
+
+
 def test_ipip_points_energy_is_continuous_where_zones_jumps():
     """Along a path of gap fields on which a second contact zone appears while the beams
     overlap, the paper's "zones" energy jumps by the new zone's eps q^2 / 2 however finely

@@ -6,7 +6,7 @@ All elements of all beams are numbered globally; basis rows are padded to the la
 number of local control points (padding rows of R are zero).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import jax
 import jax.numpy as jnp
@@ -21,7 +21,8 @@ from beamcontact.spline import nurbs_basis_derivatives
 class ContactElements:
     """Per global element: shapes conn, loc_valid (E, n_loc); R (E, n_s, n_loc);
     w (E, n_s); radius, beta (E,); beam (E,) beam index; pairs (P + 1, 2) all element
-    pairs of different beams, the last row a sentinel (E, E)."""
+    pairs of different beams, the last row a sentinel (E, E); n_beams (static) the
+    number of beams."""
 
     conn: jax.Array
     loc_valid: jax.Array
@@ -31,6 +32,7 @@ class ContactElements:
     beta: jax.Array
     beam: jax.Array
     pairs: jax.Array
+    n_beams: int = field(default=2, metadata=dict(static=True))
 
     @property
     def n_elements(self) -> int:
@@ -84,4 +86,4 @@ def contact_elements(disc, segments: int, betas, beam_pairs=None) -> ContactElem
     return ContactElements(conn=jnp.asarray(np.array(conn)), loc_valid=jnp.asarray(valid),
                            R=as_float(Rs), w=as_float(ws), radius=as_float(radius),
                            beta=as_float(beta), beam=jnp.asarray(beam_of),
-                           pairs=jnp.asarray(pairs))
+                           pairs=jnp.asarray(pairs), n_beams=n_beams)

@@ -1,4 +1,8 @@
-"""IPIP: the closest integration-point pairs (paper Sec. 2.1), chosen on the host per step.
+"""IPIP: the closest integration-point pairs (paper Sec. 2.1), chosen once per step.
+
+The "zones" rule runs on the host (NumPy, connected plateaus by scipy.ndimage); the
+"points" rule runs on the host in statics and on the device in dynamics
+(:func:`point_weights_on_device`, the same weights to the last bit, tested).
 
 For each pair of beams, the discrete distance d(i, j) lives on the grid of their contact
 points. Two rules choose the pairs that carry the penalty (``Penalty.pairing``):
@@ -95,4 +99,35 @@ def _point_weights(grid: np.ndarray, tol: np.ndarray, q_active: float) -> np.nda
         ties = (grid <= nearest + tol) & (nearest < q_active) & np.isfinite(grid)
         share = 0.5 / np.maximum(np.sum(ties, axis=axis, keepdims=True), 1)
         weights += np.where(ties, share, 0.0)
+    return weights
+
+
+def point_weights_on_device(q, pairs, ce, q_active, rtol: float = 1e-9):
+    """The "points" rule (:func:`_point_weights`) on the device, for the blocks' gaps q
+    (C, n_s, n_s): the same weights, without the host round trip.
+
+    The host rule works on one grid per pair of beams; here a point's closest partner on
+    another beam is a segment minimum over the point's global index times the number of
+    beams plus the other beam. Equality, tie counts and shares use the host's arithmetic.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    C, ns, _ = q.shape
+    E = ce.n_elements
+    real = pairs[:, 0] < E
+    e1, e2 = jnp.minimum(pairs[:, 0], E - 1), jnp.minimum(pairs[:, 1], E - 1)
+    q = jnp.where(real[:, None, None], q, jnp.inf)
+    tol = rtol * jnp.maximum(1.0, jnp.abs(jnp.where(jnp.isfinite(q), q, 0.0)))
+    local = jnp.arange(ns)
+    n_seg = E * ns * ce.n_beams
+    weights = jnp.zeros_like(q)
+    for own, other, axis in ((e1, e2, 2), (e2, e1, 1)):
+        seg = (own[:, None] * ns + local) * ce.n_beams + ce.beam[other][:, None]  # (C, ns)
+        nearest = jax.ops.segment_min(jnp.min(q, axis=axis).ravel(), seg.ravel(), n_seg)
+        near = jnp.expand_dims(nearest[seg], axis)
+        ties = (q <= near + tol) & (near < q_active) & jnp.isfinite(q)
+        count = jax.ops.segment_sum(jnp.sum(ties, axis=axis).ravel(), seg.ravel(), n_seg)
+        share = 0.5 / jnp.maximum(jnp.expand_dims(count[seg], axis), 1)
+        weights = weights + jnp.where(ties, share, 0.0)
     return weights

@@ -66,6 +66,7 @@ from beamcontact.dynamics.step import (
     DIAGNOSTICS,
     VALUES,
     closest_pair_candidates,
+    closest_point_set,
     diagnostics,
     fused_step,
     positions,
@@ -213,14 +214,10 @@ def _attempt(loop: _Loop, model: Model, h: float, alpha: float, options: NewtonO
     ``loop``; the attempt is redone)."""
     search = None if contact is None else contact.search
     cs = None
-    if contact is not None and contact.law.closest_pairs:  # chosen on the host
-        pairs, q, count, motion = jax.device_get(closest_pair_candidates(
-            loop.state, model, np.float64(h), np.float64(loop.motion_factor), search,
-            capacity=loop.capacity))
-        if count > loop.capacity:
-            loop.capacity = contact.capacity_for(int(count))
+    if contact is not None and contact.law.closest_pairs:
+        cs = _closest_set(loop, model, h, contact)
+        if cs is None:
             return None
-        cs = contact.closest_pair_set(pairs, q, float(motion))
     t0 = time.perf_counter()
     # host scalars as NumPy float64: strongly typed like the arrays they replace, and
     # passed to the jitted step without eager device operations
@@ -246,6 +243,23 @@ def _attempt(loop: _Loop, model: Model, h: float, alpha: float, options: NewtonO
             loop.motion_factor *= 2.0  # the step moved further than foreseen: redo it
             return None
     return new, report, flags
+
+
+def _closest_set(loop: _Loop, model: Model, h: float, contact: ContactProblem):
+    """The IPIP set of an attempt ("points" chosen on the device, "zones" on the host),
+    or None when the candidate list overflowed (then ``loop.capacity`` has grown)."""
+    args = (loop.state, model, np.float64(h), np.float64(loop.motion_factor), contact.search)
+    if contact.law.pairing == "points":
+        cs, count = closest_point_set(*args, capacity=loop.capacity)
+    else:
+        pairs, q, count, motion = jax.device_get(
+            closest_pair_candidates(*args, capacity=loop.capacity))
+        cs = None if count > loop.capacity else contact.closest_pair_set(pairs, q,
+                                                                         float(motion))
+    if int(count) > loop.capacity:
+        loop.capacity = contact.capacity_for(int(count))
+        return None
+    return cs
 
 
 def _reject(loop: _Loop, rejection: Rejection, jump: float, control: StepControl) -> bool:

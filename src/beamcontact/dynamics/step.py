@@ -26,6 +26,7 @@ from beamcontact.contact.problem import (
     missed_blocks,
     near_candidates,
 )
+from beamcontact.contact.select import point_weights_on_device
 from beamcontact.dynamics.control import ADVANCE_FRACTION, StepFlags, total_energy
 from beamcontact.dynamics.hht import DynState, hht_step, predictor
 
@@ -180,6 +181,19 @@ def _predicted_x(state: DynState, model: Model, h):
 def positions(u, model: Model):
     """Control points (n_cp, 2) of the flat displacement u."""
     return model.x_ref + u.reshape(-1, 2)
+
+
+@partial(jax.jit, static_argnames=("capacity",))
+def closest_point_set(state: DynState, model: Model, h, motion_factor, search: ContactSearch,
+                      *, capacity: int):
+    """IPIP with pairing = "points", all on the device: predictor, candidates, gaps and the
+    weights of :func:`~beamcontact.contact.select.point_weights_on_device`, blocks with a
+    weight first (as the host's selection orders them); returns (set, count)."""
+    pairs, q, count, motion = closest_pair_candidates(state, model, h, motion_factor, search,
+                                                      capacity=capacity)
+    W = point_weights_on_device(q, pairs, search.elements, 2.0 * motion)
+    order = jnp.argsort(~jnp.any(W != 0.0, axis=(1, 2)), stable=True)
+    return ContactSet(pairs[order], W[order], search.law), count
 
 
 @partial(jax.jit, static_argnames=("capacity",))
