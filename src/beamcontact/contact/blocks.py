@@ -9,8 +9,10 @@ products with the basis rows (DESIGN.md Sec. 7); the assembly scatters them, one
 blocks at a time (:func:`fold_block_forces`).
 
 W_ij is w1_i w2_j (reference arc lengths) for the coarse-grained model, computed chunk by
-chunk from the element indices (``ContactSet.W`` is None), and the host's selection of
-closest pairs (1, or 1/2 for the two middle pairs of an even plateau) for IPIP.
+chunk from the element indices (``ContactSet.W`` is None), and the weights of the
+closest-pair selection for IPIP (:mod:`beamcontact.contact.select`: 1 or 1/2 per zone for
+"zones", chosen on the host; shares of 1/2 per point for "points", chosen on the device in
+dynamics).
 """
 
 from dataclasses import dataclass
