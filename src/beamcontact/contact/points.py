@@ -32,7 +32,7 @@ class ContactElements:
     beta: jax.Array
     beam: jax.Array
     pairs: jax.Array
-    n_beams: int = field(default=2, metadata=dict(static=True))
+    n_beams: int = field(metadata=dict(static=True))
 
     @property
     def n_elements(self) -> int:
