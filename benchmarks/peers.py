@@ -43,6 +43,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _shared import pinned_beam_case
 
 HERE = Path(__file__).resolve().parent
 PEERS = HERE / "peers"
@@ -173,14 +174,7 @@ def case_scaling(tmp: Path, args):
 
     rows = []
     for n in (100, 800):
-        case = {"analysis": {"kind": "dynamic", "t_end": 0.01, "dt": 1e-4, "alpha": -0.1,
-                             "gravity": [0.0, -9.81]},
-                "beams": [{"name": "beam", "line": {"start": [0.0, 0.0], "end": [10.0, 0.0]},
-                           "degree": 4, "elements": n, "continuity": 3,
-                           "section": {"shape": "circle", "radius": 0.1},
-                           "material": {"E": 1e7, "density": 1000.0},
-                           "supports": [{"at": "start", "type": "pinned"},
-                                        {"at": "end", "type": "pinned"}]}],
+        case = {**pinned_beam_case(n),
                 "solver": {"error_tol": 0.0},
                 "output": {"points": [{"name": "A", "beam": "beam", "at": 0.5}]}}
         path = tmp / f"scaling_{n}.toml"

@@ -14,7 +14,6 @@ The run to --t is kept in --out (default results_step_pieces/) and reused.
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +27,7 @@ import jax.numpy as jnp  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "peers"))
+from _shared import best_ms  # noqa: E402
 from compare import MODELS, drop_case  # noqa: E402
 
 from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
@@ -44,19 +44,6 @@ from beamcontact.dynamics.step import (  # noqa: E402
 )
 from beamcontact.io.case import parse_case  # noqa: E402
 from beamcontact.runner import _discretize, _restart_state, run_case  # noqa: E402
-
-
-def best_ms(f, n=30) -> float:
-    """Best of 5 means over n calls, in ms, after one warm-up call."""
-    jax.block_until_ready(f())
-    best = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        for _ in range(n):
-            r = f()
-        jax.block_until_ready(r)
-        best.append((time.perf_counter() - t0) / n)
-    return 1e3 * min(best)
 
 
 def main() -> None:

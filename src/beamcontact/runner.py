@@ -135,7 +135,8 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
         warnings.append(set_change_warning(summary.get("energy"), contact.law.pairing))
     summary["warnings"] = [w for w in warnings if w is not None]
     summary.update({"title": case.title, "kind": case.analysis.kind,
-                    "solver": effective_settings(case),
+                    "solver": {**effective_settings(case),
+                               "linear_solver_used": "sparse" if model.sparse else "dense"},
                     "wall_time_s": time.perf_counter() - wall0, "n_dof": model.n_dof,
                     "n_elements": sum(b.mesh.n_elements for b in disc.beams),
                     "beamcontact_version": __version__})

@@ -19,6 +19,7 @@ from beamcontact.beam.inertia import (
     element_momentum,
     rotational_acceleration,
 )
+from beamcontact.solvers import linear
 
 
 def newmark_kinematics(u, u_n, v_n, a_n, coeffs):
@@ -40,7 +41,7 @@ def inertia_residual_tangent(u, u_n, v_n, a_n, coeffs, model: Model):
     """
     n = model.n_dof
     r = jnp.zeros(n)
-    K = jnp.zeros((n, n))
+    K = linear.zeros(n, model.sparse)
     u2, un2, vn2, an2 = (w.reshape(-1, 2) for w in (u, u_n, v_n, a_n))
     for blk in model.beams:
         c = blk.conn
@@ -72,8 +73,7 @@ def inertia_residual_tangent(u, u_n, v_n, a_n, coeffs, model: Model):
         n_el, n_loc = c.shape
         dofs = element_dofs(c)
         r = r.at[dofs].add(r_e.reshape(n_el, 2 * n_loc))
-        K = K.at[dofs[:, :, None], dofs[:, None, :]].add(k_e.reshape(n_el, 2 * n_loc,
-                                                                    2 * n_loc))
+        K = linear.scatter(K, dofs, k_e.reshape(n_el, 2 * n_loc, 2 * n_loc))
     return r, K
 
 
@@ -81,7 +81,7 @@ def inertia_force_and_mass(u, v, a, model: Model):
     """Inertia force at (u, v, a) and the mass matrix dF/da (rotational part included)."""
     n = model.n_dof
     r = jnp.zeros(n)
-    M = jnp.zeros((n, n))
+    M = linear.zeros(n, model.sparse)
     x = model.x_ref + u.reshape(-1, 2)
     v2, a2 = v.reshape(-1, 2), a.reshape(-1, 2)
     for blk in model.beams:
@@ -95,7 +95,7 @@ def inertia_force_and_mass(u, v, a, model: Model):
                 blk.rho_area, blk.rho_inertia)
         dofs = element_dofs(c)
         r = r.at[dofs].add(jax.vmap(local)(*args))
-        M = M.at[dofs[:, :, None], dofs[:, None, :]].add(jax.vmap(jax.jacfwd(local))(*args))
+        M = linear.scatter(M, dofs, jax.vmap(jax.jacfwd(local))(*args))
     return r, M
 
 

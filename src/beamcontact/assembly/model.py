@@ -70,7 +70,7 @@ class LoadState:
     tangent: jax.Array
 
 
-@_pytree
+@_pytree(meta=("sparse",))
 class Model:
     """Everything the kernels need; varying numbers are array data (one compile per shape).
 
@@ -80,6 +80,8 @@ class Model:
         x_ref: reference control points of the whole model, shape (n_cp, 2).
         free: 1.0 for free dofs, 0.0 for supported ones, shape (2 n_cp,).
         gravity: acceleration of gravity, shape (2,).
+        sparse: static; the tangent is kept as local blocks and solved by a sparse or
+            banded LU (:mod:`~beamcontact.solvers.linear`) instead of a dense matrix.
     """
 
     beams: tuple
@@ -87,6 +89,7 @@ class Model:
     x_ref: jax.Array
     free: jax.Array
     gravity: jax.Array
+    sparse: bool = False
 
     @property
     def n_dof(self) -> int:

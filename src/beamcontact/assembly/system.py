@@ -19,7 +19,13 @@ from beamcontact.beam.energy import (
     point_strain_energy,
 )
 from beamcontact.beam.loads import point_load_potential, tangent_rotation
-from beamcontact.contact.blocks import FrozenContact, contact_energy, fold_block_forces
+from beamcontact.contact.blocks import (
+    FrozenContact,
+    block_forces,
+    contact_energy,
+    fold_block_forces,
+)
+from beamcontact.solvers import linear
 
 
 def _beam_residual_tangent(x, blk: ElementBlock, lam, gravity):
@@ -74,17 +80,16 @@ def energies(u: jax.Array, model: Model, lam, load_state: LoadState) -> dict:
 
 
 def _scatter(r, K, dofs, r_e, k_e):
-    r = r.at[dofs].add(r_e)
-    K = K.at[dofs[:, :, None], dofs[:, None, :]].add(k_e)
-    return r, K
+    return r.at[dofs].add(r_e), linear.scatter(K, dofs, k_e)
 
 
 def potential_residual_tangent(u: jax.Array, model: Model, lam, load_state: LoadState):
-    """Gradient (residual) and Hessian (tangent) of the static potential, unconstrained."""
+    """Gradient (residual) and Hessian (tangent) of the static potential, unconstrained;
+    the tangent dense or sparse as ``model.sparse`` says."""
     n = model.n_dof
     x = model.x_ref + u.reshape(-1, 2)
     r = jnp.zeros(n)
-    K = jnp.zeros((n, n))
+    K = linear.zeros(n, model.sparse)
     for blk in model.beams:
         r_e, k_e = _beam_residual_tangent(x, blk, lam, model.gravity)
         r, K = _scatter(r, K, element_dofs(blk.conn), r_e, k_e)
@@ -107,13 +112,22 @@ def residual_tangent_with_contact(u, model: Model, lam, load_state: LoadState,
     r, K = potential_residual_tangent(u, model, lam, load_state)
     if contact is None:
         return r, K
-    r_c, K_c = contact_residual_tangent(model.x_ref + u.reshape(-1, 2), contact, model.n_dof)
-    return r + r_c, K + K_c
+    r_c, K_c = contact_residual_tangent(model.x_ref + u.reshape(-1, 2), contact, model.n_dof,
+                                        model.sparse)
+    return r + r_c, linear.add(K, K_c)
 
 
-def contact_residual_tangent(x, contact: FrozenContact, n_dof: int):
+def contact_residual_tangent(x, contact: FrozenContact, n_dof: int, sparse: bool = False):
     """Global contact force (gradient of the contact energy) and tangent (its Hessian) of
-    the frozen blocks at control points x."""
+    the frozen blocks at control points x.
+
+    Dense: scattered chunk by chunk as the blocks are computed. Sparse: every block's
+    (dofs, gradient, Hessian) at once (zeros for skipped chunks: exact zeros that the
+    host solve drops), appended as triplets."""
+    if sparse:
+        conn, f, k = block_forces(x, contact.elements, contact.blocks)
+        return _scatter(jnp.zeros(n_dof, x.dtype), linear.zeros(n_dof, True),
+                        element_dofs(conn), f, k)
     zero = (jnp.zeros(n_dof, x.dtype), jnp.zeros((n_dof, n_dof), x.dtype))
     return fold_block_forces(x, contact.elements, contact.blocks, _scatter_blocks, zero)
 
@@ -130,14 +144,12 @@ def contact_energy_of(u, model: Model, contact: FrozenContact | None):
     return contact_energy(model.x_ref + u.reshape(-1, 2), contact.elements, contact.blocks)
 
 
-def apply_supports(r: jax.Array, K: jax.Array, free: jax.Array):
+def apply_supports(r: jax.Array, K, free: jax.Array):
     """Zero the residual of supported dofs and replace their rows/columns by the identity.
 
     Supported dofs keep their (zero) displacement because their Newton increment is zero.
     """
-    r = r * free
-    K = K * free[:, None] * free[None, :] + jnp.diag(1.0 - free)
-    return r, K
+    return r * free, linear.apply_supports(K, free)
 
 
 def update_load_state(model: Model, u: jax.Array, state: LoadState) -> LoadState:

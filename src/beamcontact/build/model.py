@@ -14,6 +14,7 @@ from beamcontact.assembly.model import ElementBlock, Model, PointLoads
 from beamcontact.beam.mesh import BeamMesh, build_mesh, point_basis, refine_axis
 from beamcontact.beam.section import Section, circle_section, rectangle_section
 from beamcontact.io.case import Beam, Case, at_fraction
+from beamcontact.solvers.linear import use_sparse
 from beamcontact.spline import NurbsCurve, arc, line
 
 
@@ -179,7 +180,8 @@ def build_model(case: Case, disc: Discretization | None = None) -> tuple[Model, 
     model = Model(
         beams=_blocks(disc, case),
         loads=_point_loads(case, disc), x_ref=as_float(x_ref),
-        free=as_float(~supported_dofs(case, disc)), gravity=as_float(case.analysis.gravity))
+        free=as_float(~supported_dofs(case, disc)), gravity=as_float(case.analysis.gravity),
+        sparse=use_sparse(case.solver.linear_solver, x_ref.size))
     return model, disc
 
 

@@ -194,19 +194,46 @@ def _over_chunks(ce: ContactElements, cs: ContactSet, add, init):
     candidates, not the capacity: a generous capacity costs nothing and saves
     recompilations, and free flight costs nothing at all.
     """
+    def body(carry, part):
+        # padding blocks, and IPIP blocks without a selected pair, have zero weights
+        active = jnp.any(part.W != 0.0)
+        return jax.lax.cond(active, lambda c: add(c, part), lambda c: c, carry), None
+
+    return _scan_chunks(ce, cs, body, init)[0]
+
+
+def _scan_chunks(ce: ContactElements, cs: ContactSet, body, init):
+    """``lax.scan`` of ``body(carry, part)`` over the candidate list in chunks of CHUNK
+    blocks, each chunk as a ContactSet with its weights filled in."""
     C = cs.pairs.shape[0]
     size = CHUNK if C % CHUNK == 0 else C
     chunks = jax.tree_util.tree_map(lambda a: a.reshape(C // size, size, *a.shape[1:]),
                                     (cs.pairs, cs.W))
 
-    def body(carry, chunk):
+    def weighted(carry, chunk):
         pairs, W = chunk
         part = ContactSet(pairs, arc_length_weights(ce, pairs) if W is None else W, cs.law)
-        # padding blocks, and IPIP blocks without a selected pair, have zero weights
-        active = jnp.any(part.W != 0.0)
-        return jax.lax.cond(active, lambda c: add(c, part), lambda c: c, carry), None
+        return body(carry, part)
 
-    return jax.lax.scan(body, init, chunks)[0]
+    return jax.lax.scan(weighted, init, chunks)
+
+
+def block_forces(x, ce: ContactElements, cs: ContactSet):
+    """(conn, gradient, Hessian) of every block at once, in the layout of
+    :func:`fold_block_forces`, for an assembly that keeps the blocks (the sparse tangent);
+    chunks without a weight are skipped and give zeros (conn 0)."""
+
+    def body(carry, part):
+        shapes = jax.eval_shape(lambda p: _block_forces(x, ce, p), part)
+
+        def skip(_):
+            return tuple(jnp.zeros(s.shape, s.dtype) for s in shapes)
+
+        active = jnp.any(part.W != 0.0)
+        return carry, jax.lax.cond(active, lambda p: _block_forces(x, ce, p), skip, part)
+
+    conn, f, k = _scan_chunks(ce, cs, body, None)[1]
+    return tuple(a.reshape(-1, *a.shape[2:]) for a in (conn, f, k))
 
 
 def _block_forces(x, ce: ContactElements, cs: ContactSet):

@@ -27,6 +27,7 @@ from beamcontact.assembly.system import (
     update_load_state,
 )
 from beamcontact.contact.blocks import FrozenContact
+from beamcontact.solvers import linear
 from beamcontact.solvers.newton import NewtonResult, newton
 
 # A time step whose Newton residual is still above the predictor's after this many
@@ -71,7 +72,7 @@ def initial_state(u0, v0, model: Model, load_state: LoadState,
     f_pot, _ = residual_tangent_with_contact(u0, model, 1.0, load_state, contact)
     f0, M = inertia_force_and_mass(u0, v0, jnp.zeros_like(u0), model)
     r, M = apply_supports(f0 + f_pot, M, free)
-    a0 = jnp.linalg.solve(M, -r)
+    a0 = linear.solve(M, -r)
     return DynState(jnp.asarray(0.0), u0, v0, a0, f_pot, load_state)
 
 
@@ -89,7 +90,7 @@ def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs, max_itera
         r_p, K_p = residual_tangent_with_contact(u, model, 1.0, state.load_state, contact)
         r_i, K_i = inertia_residual_tangent(u, state.u, state.v, state.a, coeffs, model)
         r = r_i + (1.0 + alpha) * r_p - alpha * state.f_pot
-        return (*apply_supports(r, K_i + (1.0 + alpha) * K_p, model.free), r_p)
+        return (*apply_supports(r, linear.add(K_i, K_p, 1.0 + alpha), model.free), r_p)
 
     u_pred = predictor(state, dt)
     tol = jnp.stack([rtol, rtol * jnp.linalg.norm(state.f_pot * model.free), utol_abs])

@@ -302,7 +302,10 @@ class Solver(_Strict):
     L = 10 m allows 25 um per step (0: fixed steps of analysis.dt, cut only on failure);
     energy_tol: a step that creates more than this fraction of E_kin + E_strain +
     |E_contact|, or whose contact-set change jumps the energy by more, is redone shorter
-    (0: no check).
+    (0: no check). linear_solver: how Newton's linear systems are solved, "dense" (one
+    n x n matrix, LU on the device), "sparse" (the local blocks kept as triplets, banded
+    or sparse LU on the host; cost linear in the number of dofs) or "auto" (sparse on CPU
+    from 300 dofs on, else dense).
     """
 
     max_iterations: Annotated[int, Field(ge=1, le=500)] = 25
@@ -311,6 +314,7 @@ class Solver(_Strict):
     max_cutbacks: Annotated[int, Field(ge=0, le=200)] = 20
     error_tol: Annotated[float, Field(ge=0.0, lt=1.0)] = 2.5e-6
     energy_tol: Annotated[float, Field(ge=0.0)] = 2.5e-4
+    linear_solver: Literal["auto", "dense", "sparse"] = "auto"
 
 
 class OutputPoint(_Strict):

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
+from beamcontact.solvers.linear import solve
+
 
 @dataclass(frozen=True)
 class NewtonOptions:
@@ -41,7 +43,8 @@ def newton(residual_tangent, u0, max_iterations: int, tolerances,
     """Solve residual(u) = 0 from u0.
 
     Args:
-        residual_tangent: u -> (r, K, aux) with supports already applied; aux (any pytree,
+        residual_tangent: u -> (r, K, aux) with supports already applied (K dense or
+            sparse, :mod:`~beamcontact.solvers.linear`); aux (any pytree,
             e.g. a force needed after convergence) of the final u is returned.
         u0: predictor.
         max_iterations: the static iteration limit.
@@ -60,7 +63,7 @@ def newton(residual_tangent, u0, max_iterations: int, tolerances,
 
     def body(state):
         u, r, K, _, k, _, _, _ = state
-        du = jnp.linalg.solve(K, -r)
+        du = solve(K, -r)
         u = u + du
         r, K, aux = residual_tangent(u)
         rn = jnp.linalg.norm(r)

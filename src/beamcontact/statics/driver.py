@@ -33,6 +33,7 @@ from beamcontact.assembly.system import (
 from beamcontact.contact.blocks import FrozenContact
 from beamcontact.contact.problem import ContactProblem, freeze
 from beamcontact.dynamics.control import Attempts, Rejection, StepControl, next_step
+from beamcontact.solvers.linear import to_dense
 from beamcontact.solvers.newton import NewtonOptions, newton
 from beamcontact.statics.restraint import beam_modes, beam_ranges, singular_tangent_message
 
@@ -105,7 +106,7 @@ def mechanism_message(model: Model, contact: ContactProblem | None, cs, load_sta
         labels = [repr(name) for name in beam_names]
     _, K = _tangent(jnp.zeros(model.n_dof), model, jnp.asarray(0.0), load_state,
                     freeze(contact, cs))
-    return singular_tangent_message(np.asarray(K), free, x_ref, ranges, labels,
+    return singular_tangent_message(to_dense(K), free, x_ref, ranges, labels,
                                     contact=contact is not None)
 
 
