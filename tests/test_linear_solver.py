@@ -111,8 +111,8 @@ def test_auto_choice_and_case_key():
 @pytest.mark.parametrize("law", ["cg", "ipip-points"])
 def test_impact_with_sparse_tangent_equals_dense(tmp_path, law):
     """The free collision of tests/test_impacts.py (a run through a whole impact, the
-    controller choosing every step) solved both ways: the same steps, and trajectories
-    equal to round-off."""
+    controller choosing every step) solved both ways: the same number of steps at the
+    same times, and trajectories equal to round-off."""
     runs = {}
     for kind in ("dense", "sparse"):
         raw = _free_collision(law)
@@ -125,7 +125,9 @@ def test_impact_with_sparse_tangent_equals_dense(tmp_path, law):
     d, s = runs["dense"], runs["sparse"]
     assert d["min_gap"].min() < 0.005  # through the impact
     assert len(d["t"]) == len(s["t"])
-    np.testing.assert_allclose(s["t"], d["t"], rtol=1e-12, atol=0)
+    # the controller sizes steps from an error estimate (a difference of accelerations),
+    # so round-off reaches the step times: they agree to a billionth of the largest step
+    np.testing.assert_allclose(s["t"], d["t"], rtol=0, atol=1e-9 * 2e-3)
     for col in ("A_x", "A_y"):
         np.testing.assert_allclose(s[col], d[col], rtol=0, atol=1e-10)
     np.testing.assert_allclose(s["E_total"], d["E_total"], rtol=1e-9)
