@@ -61,3 +61,15 @@ def test_knot_insertion_boehm_single_and_repeated():
         np.testing.assert_allclose(ci.evaluate(U, 2), c.evaluate(U, 2), atol=1e-10)
     with pytest.raises(ValueError):
         insert_knot(c, 1 / 3, 3)  # would exceed multiplicity p
+
+
+def test_evaluate_sums_only_the_nonzero_basis_functions():
+    """``evaluate`` (p+1 terms per parameter) equals the dense basis matrix times the
+    control points to round-off, for points and both derivatives of a refined arc."""
+    c = arc([0.3, -0.2], 2.0, 0.4, 2.9)
+    c = refine_knots(elevate_degree(c, 2), np.repeat(np.linspace(0, 1, 41)[1:-1], 2))
+    u = np.random.default_rng(5).random(300)
+    new, dense = c.evaluate(u, 2), c.basis_matrix(u, 2) @ c.points
+    for d in range(3):
+        scale = np.abs(c.basis_matrix(u, 2)[d]).sum(axis=1).max() * np.abs(c.points).max()
+        np.testing.assert_allclose(new[d], dense[d], rtol=0, atol=4e-16 * scale)
