@@ -15,6 +15,7 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
+from beamcontact._persistent import persistent_jit
 from beamcontact.assembly.inertia import (
     inertia_force_and_mass,
     inertia_residual_tangent,
@@ -63,7 +64,7 @@ def hht_coefficients(alpha, dt):
     return jnp.stack([1.0 / (beta * dt**2), dt, (1.0 - 2.0 * beta) / (2.0 * beta), gamma])
 
 
-@jax.jit
+@persistent_jit
 def initial_state(u0, v0, model: Model, load_state: LoadState,
                   contact: FrozenContact | None = None) -> DynState:
     """Consistent initial acceleration: F_inertia(u0, v0, a0) = -f_pot(u0) on free dofs."""

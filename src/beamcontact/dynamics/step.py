@@ -13,6 +13,7 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
+from beamcontact._persistent import persistent_jit
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
@@ -60,7 +61,7 @@ def host_diagnostics(state: DynState, model: Model, contact: ContactProblem | No
     return d
 
 
-@partial(jax.jit, static_argnames=("max_iterations", "capacity"))
+@persistent_jit(static_argnames=("max_iterations", "capacity"))
 def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, motion_factor,
                search: ContactSearch | None = None, cs: ContactSet | None = None, *,
                max_iterations: int, capacity: int = 0):
@@ -183,7 +184,7 @@ def positions(u, model: Model):
     return model.x_ref + u.reshape(-1, 2)
 
 
-@partial(jax.jit, static_argnames=("capacity",))
+@persistent_jit(static_argnames=("capacity",))
 def closest_point_set(state: DynState, model: Model, h, motion_factor, search: ContactSearch,
                       *, capacity: int):
     """IPIP with pairing = "points", all on the device: predictor, candidates, gaps and the

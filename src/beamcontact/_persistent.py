@@ -1,0 +1,141 @@
+"""Traced programs kept on disk, so that a new process skips tracing (``jax.export``).
+
+JAX's persistent compilation cache (``_cache.py``) saves the compiled executable, but it is
+looked up by the lowered program, so every process still traces and lowers each function:
+about 2 s for the fused time step and 4-5 s per run in all, longer than the whole step loop
+of a short run. :func:`persistent_jit` is ``jax.jit`` that also serialises the lowered
+program of each new signature (``jax.export``) to ``<cache>/exported/`` and, in a later
+process, deserialises it instead of tracing; the executable then still comes from the
+compilation cache. The program is the same StableHLO, so results are bitwise those of
+``jax.jit`` (tests/test_persistent.py).
+
+A saved program is used only by the same beamcontact source (a hash of every module), the
+same JAX, platform and x64 setting, and the same argument structure, shapes, dtypes and
+static arguments. Programs JAX cannot serialise (host callbacks: the sparse tangent), and
+signatures whose structure has no stable text (an object shown by its address), are
+simply jitted as usual. With the cache off (``BEAMCONTACT_CACHE_DIR=""``) or before the
+command line has switched it on, this is plain ``jax.jit``.
+"""
+
+import functools
+import hashlib
+import os
+import pickle
+from pathlib import Path
+
+import jax
+
+_SOURCE_HASH: str | None = None
+
+
+def _source_hash() -> str:
+    """sha256 of every module of the package (any edit invalidates every saved program)."""
+    global _SOURCE_HASH
+    if _SOURCE_HASH is None:
+        h = hashlib.sha256()
+        root = Path(__file__).resolve().parent
+        for path in sorted(root.rglob("*.py")):
+            h.update(str(path.relative_to(root)).encode())
+            h.update(path.read_bytes())
+        _SOURCE_HASH = h.hexdigest()
+    return _SOURCE_HASH
+
+
+def _folder() -> Path | None:
+    """<compilation cache>/exported, or None when JAX's persistent cache is not on."""
+    base = jax.config.jax_compilation_cache_dir
+    if not base:
+        return None
+    return Path(base) / "exported"
+
+
+class _Persistent:
+    """``jax.jit`` of a function that, while it is traced for a new signature, embeds the
+    saved program of that signature (``Exported.call``) instead of tracing the function,
+    exporting and saving it first when there is none. So every process, the first
+    included, runs the same exported program. Calls go through ``jax.jit``'s own
+    dispatch: nothing is added per call."""
+
+    def __init__(self, fn, static_argnames: tuple[str, ...]):
+        self.fn = fn
+        self.static_argnames = static_argnames
+        self.jitted = jax.jit(self._trace, static_argnames=static_argnames)
+        functools.update_wrapper(self, fn)
+
+    def __call__(self, *args, **kwargs):
+        return self.jitted(*args, **kwargs)
+
+    def _trace(self, *args, **kwargs):
+        statics = {k: kwargs.pop(k) for k in self.static_argnames if k in kwargs}
+        leaves, treedef = jax.tree_util.tree_flatten((args, kwargs))
+        # weak types only steer dtype promotion, and every float here is float64: one
+        # program serves both (else each weak/strong mix of inputs would be saved apart)
+        specs = [jax.ShapeDtypeStruct(leaf.aval.shape, leaf.aval.dtype) for leaf in leaves]
+        path = self._path(treedef, specs, statics)
+        program = None if path is None else self._load(path)
+        if program is None and path is not None:
+            program = self._save(path, treedef, specs, statics)
+        if program is None:
+            return self.fn(*args, **kwargs, **statics)
+        exported, out_tree = program
+        return jax.tree_util.tree_unflatten(out_tree, exported.call(*leaves))
+
+    def _path(self, treedef, specs, statics) -> Path | None:
+        """Where the program of this signature is kept (None: not kept)."""
+        folder = _folder()
+        signature = repr((treedef, [(s.shape, str(s.dtype)) for s in specs],
+                          sorted(statics.items())))
+        if folder is None or " at 0x" in signature:
+            return None
+        key = hashlib.sha256("\n".join([
+            f"{self.fn.__module__}.{self.fn.__qualname__}", _source_hash(), jax.__version__,
+            jax.default_backend(), str(jax.config.jax_enable_x64), signature]).encode())
+        return folder / f"{self.fn.__name__}-{key.hexdigest()[:32]}"
+
+    @staticmethod
+    def _load(path: Path):
+        """(exported, output tree) saved at path, or None."""
+        try:
+            return (jax.export.deserialize(bytearray(path.with_suffix(".hlo").read_bytes())),
+                    pickle.loads(path.with_suffix(".tree").read_bytes()))
+        except (OSError, ValueError, pickle.UnpicklingError, EOFError):
+            return None
+
+    def _save(self, path: Path, treedef, specs, statics):
+        """Export the program of one signature and write it; returns (exported, output
+        tree), or None when JAX cannot export it (a host callback), which is marked so
+        that later processes do not try again."""
+        if path.with_suffix(".unsupported").exists():
+            return None
+        out_tree = []
+
+        def flat(*leaves):
+            a, k = jax.tree_util.tree_unflatten(treedef, leaves)
+            out, tree = jax.tree_util.tree_flatten(self.fn(*a, **k, **statics))
+            out_tree.append(tree)
+            return out
+
+        try:
+            exported = jax.export.export(jax.jit(flat))(*specs)
+            files = {".tree": pickle.dumps(out_tree[0]), ".hlo": exported.serialize()}
+            program = (exported, out_tree[0])
+        except Exception:  # noqa: BLE001 (what export rejects is JAX's to say)
+            files, program = {".unsupported": b""}, None
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            # write, then rename: a concurrent process never reads half a file
+            for suffix, data in files.items():
+                tmp = path.with_suffix(f"{suffix}.{os.getpid()}.tmp")
+                tmp.write_bytes(data)
+                tmp.replace(path.with_suffix(suffix))
+        except OSError:
+            pass  # a read-only or full cache: the program is still used in this process
+        return program
+
+
+def persistent_jit(fn=None, *, static_argnames: tuple[str, ...] = ()):
+    """``jax.jit`` (static arguments by keyword only) whose lowered programs are kept on
+    disk for later processes; see the module docstring."""
+    if fn is None:
+        return functools.partial(persistent_jit, static_argnames=tuple(static_argnames))
+    return _Persistent(fn, tuple(static_argnames))
