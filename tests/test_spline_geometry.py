@@ -73,3 +73,12 @@ def test_evaluate_sums_only_the_nonzero_basis_functions():
     for d in range(3):
         scale = np.abs(c.basis_matrix(u, 2)[d]).sum(axis=1).max() * np.abs(c.points).max()
         np.testing.assert_allclose(new[d], dense[d], rtol=0, atol=4e-16 * scale)
+
+
+def test_sparse_basis_is_the_dense_basis():
+    c = refine_knots(elevate_degree(arc([0.0, 0.0], 1.5, 0.2, 2.2), 2),
+                     np.linspace(0, 1, 13)[1:-1])
+    u = np.linspace(0.0, 1.0, 97)
+    B = c.sparse_basis(u)
+    assert B.nnz == len(u) * (c.degree + 1)
+    np.testing.assert_array_equal(B.toarray(), c.basis_matrix(u)[0])

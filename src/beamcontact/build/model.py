@@ -193,12 +193,13 @@ def point_sampler(disc: Discretization, name: str, fraction: float) -> tuple[np.
     return idx + info.offset, d[0]
 
 
-def polyline_matrix(info: DiscreteBeam, samples_per_element: int) -> np.ndarray:
-    """Dense matrix mapping the beam's control points to polyline vertices along its axis."""
+def polyline_matrix(info: DiscreteBeam, samples_per_element: int):
+    """Sparse matrix (scipy CSR) mapping the beam's control points to polyline vertices
+    along its axis."""
     breaks = info.mesh.breaks
     u = np.unique(np.concatenate([np.linspace(a, b, samples_per_element + 1)
                                   for a, b in zip(breaks[:-1], breaks[1:], strict=True)]))
-    return info.curve.basis_matrix(u)[0]
+    return info.curve.sparse_basis(u)
 
 
 def uniform_velocities(disc, velocities) -> np.ndarray:

@@ -15,7 +15,7 @@ import numpy as np
 class VtkSeries:
     """Writes ``vtk/beams_NNNNN.vtu`` and keeps ``beams.pvd`` valid after every snapshot."""
 
-    def __init__(self, out_dir: Path, polylines: list[np.ndarray], radii: list[float],
+    def __init__(self, out_dir: Path, polylines: list, radii: list[float],
                  x_ref: np.ndarray, offsets: list[int], n_cps: list[int],
                  resume_until: float | None = None):
         self.out_dir = out_dir

@@ -4,6 +4,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import scipy.sparse as sp
 
 from beamcontact.spline.basis import nurbs_basis_derivatives
 
@@ -54,6 +55,16 @@ class NurbsCurve:
         rows = np.arange(len(u))[:, None]
         out[:, rows, first[:, None] + np.arange(self.degree + 1)] = ders.transpose(1, 0, 2)
         return out[: nders + 1]
+
+    def sparse_basis(self, u: np.ndarray) -> sp.csr_matrix:
+        """The rational basis at parameters u as a sparse (len(u), n) matrix, p+1 entries
+        per row: points = sparse_basis(u) @ control points, in memory linear in both."""
+        u = np.atleast_1d(np.asarray(u, float))
+        first, ders = nurbs_basis_derivatives(self.knots, self.degree, self.weights, u)
+        m = self.degree + 1
+        cols = first[:, None] + np.arange(m)
+        return sp.csr_matrix((ders[:, 0].ravel(), cols.ravel(), np.arange(0, len(u) * m + 1, m)),
+                             shape=(len(u), self.n_points))
 
     def evaluate(self, u: np.ndarray, nders: int = 0) -> np.ndarray:
         """Points and parametric derivatives: shape (nders+1, len(u), 2).
