@@ -66,7 +66,6 @@ from beamcontact.dynamics.step import (
     DIAGNOSTICS,
     VALUES,
     closest_pair_candidates,
-    closest_point_set,
     diagnostics,
     fused_step,
     positions,
@@ -214,8 +213,9 @@ def _attempt(loop: _Loop, model: Model, h: float, alpha: float, options: NewtonO
     ``loop``; the attempt is redone)."""
     search = None if contact is None else contact.search
     cs = None
-    if contact is not None and contact.law.closest_pairs:
-        cs = _closest_set(loop, model, h, contact)
+    # IPIP "zones" are chosen on the host; "points" and integrated laws in the fused step
+    if contact is not None and contact.law.closest_pairs and contact.law.pairing == "zones":
+        cs = _zone_set(loop, model, h, contact)
         if cs is None:
             return None
     t0 = time.perf_counter()
@@ -245,17 +245,13 @@ def _attempt(loop: _Loop, model: Model, h: float, alpha: float, options: NewtonO
     return new, report, flags
 
 
-def _closest_set(loop: _Loop, model: Model, h: float, contact: ContactProblem):
-    """The IPIP set of an attempt ("points" chosen on the device, "zones" on the host),
-    or None when the candidate list overflowed (then ``loop.capacity`` has grown)."""
+def _zone_set(loop: _Loop, model: Model, h: float, contact: ContactProblem):
+    """The IPIP "zones" set of an attempt, chosen on the host, or None when the candidate
+    list overflowed (then ``loop.capacity`` has grown)."""
     args = (loop.state, model, np.float64(h), np.float64(loop.motion_factor), contact.search)
-    if contact.law.pairing == "points":
-        cs, count = closest_point_set(*args, capacity=loop.capacity)
-    else:
-        pairs, q, count, motion = jax.device_get(
-            closest_pair_candidates(*args, capacity=loop.capacity))
-        cs = None if count > loop.capacity else contact.closest_pair_set(pairs, q,
-                                                                         float(motion))
+    pairs, q, count, motion = jax.device_get(
+        closest_pair_candidates(*args, capacity=loop.capacity))
+    cs = None if count > loop.capacity else contact.closest_pair_set(pairs, q, float(motion))
     if int(count) > loop.capacity:
         loop.capacity = contact.capacity_for(int(count))
         return None

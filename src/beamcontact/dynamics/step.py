@@ -67,8 +67,10 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
                max_iterations: int, capacity: int = 0):
     """One attempt at a step of (at most) h, fused into a single dispatch.
 
-    Predictor; candidate blocks within the law's interaction distance plus the motion
-    (unless ``cs`` is given by the host's closest-pair selection); the conservative
+    Predictor; candidate blocks within the law's interaction distance plus the motion,
+    or for IPIP "points" the candidates with their closest-point weights
+    (:func:`_closest_points`), unless ``cs`` is given (IPIP "zones", chosen on the
+    host); the conservative
     advancement (:func:`_advanced_step`); the HHT-alpha Newton solve (increment tolerance
     ``utol`` scaled by (h/dt_ref)^2: the acceleration is a displacement difference over
     beta h^2); the local error estimate; the post-step contact checks; diagnostics.
@@ -89,7 +91,9 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
     h_used = h
     contact = None
     if search is not None:
-        if cs is None:
+        if cs is None and _device_pairing(search.law):
+            cs, report["count"] = _closest_points(x_pred, motion, search, capacity)
+        elif cs is None:
             pairs, report["count"] = near_candidates(
                 x_pred, search.elements, search.reach, search.law.interaction_distance(),
                 motion, capacity)
@@ -184,14 +188,17 @@ def positions(u, model: Model):
     return model.x_ref + u.reshape(-1, 2)
 
 
-@persistent_jit(static_argnames=("capacity",))
-def closest_point_set(state: DynState, model: Model, h, motion_factor, search: ContactSearch,
-                      *, capacity: int):
-    """IPIP with pairing = "points", all on the device: predictor, candidates, gaps and the
+def _device_pairing(law) -> bool:
+    """Whether the law's closest pairs are chosen on the device (IPIP "points"), inside
+    the fused step; "zones" are chosen on the host and passed in."""
+    return law.closest_pairs and law.pairing == "points"
+
+
+def _closest_points(x_pred, motion, search: ContactSearch, capacity: int):
+    """IPIP with pairing = "points" at the predictor x_pred: candidates, gaps and the
     weights of :func:`~beamcontact.contact.select.point_weights_on_device`, blocks with a
     weight first (as the host's selection orders them); returns (set, count)."""
-    pairs, q, count, motion = closest_pair_candidates(state, model, h, motion_factor, search,
-                                                      capacity=capacity)
+    pairs, q, count = candidate_gaps(x_pred, search.elements, search.reach + motion, capacity)
     W = point_weights_on_device(q, pairs, search.elements, 2.0 * motion)
     order = jnp.argsort(~jnp.any(W != 0.0, axis=(1, 2)), stable=True)
     return ContactSet(pairs[order], W[order], search.law), count
