@@ -4,8 +4,8 @@ would have, without tracing.
 Asserted: the first call saves one program per signature (weakly and strongly typed
 floats share it), a new wrapper of the same function (as in a new process) loads it
 instead of tracing, and both give results bitwise equal to plain ``jax.jit``; a function
-JAX cannot export (a host callback) is marked once and jitted as usual; with the cache
-off nothing is written.
+JAX cannot export (a host callback) is marked once and jitted as usual; a damaged file
+is exported afresh; with the cache off nothing is written.
 """
 
 from dataclasses import dataclass
@@ -85,3 +85,13 @@ def test_nothing_is_written_with_the_cache_off(tmp_path, monkeypatch):
     out = f(*_args(0.01), n=1)
     assert np.isfinite(float(out["e"]))
     assert not any(tmp_path.iterdir())
+
+
+def test_a_damaged_saved_program_is_exported_afresh(cache):
+    reference = jax.jit(_energy, static_argnames=("n",))(*_args(0.01), n=2)
+    persistent_jit(_energy, static_argnames=("n",))(*_args(0.01), n=2)
+    (saved,) = cache.glob("*.hlo")
+    saved.write_bytes(b"not a program")
+    out = persistent_jit(_energy, static_argnames=("n",))(*_args(0.01), n=2)
+    np.testing.assert_array_equal(np.asarray(out["x"]), np.asarray(reference["x"]))
+    assert saved.read_bytes() != b"not a program"  # written again

@@ -71,10 +71,13 @@ class _Persistent:
         program = None if path is None else self._load(path)
         if program is None and path is not None:
             program = self._save(path, treedef, specs, statics)
-        if program is None:
-            return self.fn(*args, **kwargs, **statics)
-        exported, out_tree = program
-        return jax.tree_util.tree_unflatten(out_tree, exported.call(*leaves))
+        if program is not None:
+            exported, out_tree = program
+            try:
+                return jax.tree_util.tree_unflatten(out_tree, exported.call(*leaves))
+            except Exception:  # noqa: BLE001 (a program that does not fit: trace instead)
+                pass
+        return self.fn(*args, **kwargs, **statics)
 
     def _path(self, treedef, specs, statics) -> Path | None:
         """Where the program of this signature is kept (None: not kept)."""
@@ -94,7 +97,7 @@ class _Persistent:
         try:
             return (jax.export.deserialize(bytearray(path.with_suffix(".hlo").read_bytes())),
                     pickle.loads(path.with_suffix(".tree").read_bytes()))
-        except (OSError, ValueError, pickle.UnpicklingError, EOFError):
+        except Exception:  # noqa: BLE001 (missing, damaged or foreign: export afresh)
             return None
 
     def _save(self, path: Path, treedef, specs, statics):
