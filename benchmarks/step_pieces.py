@@ -5,7 +5,8 @@ Runs the peer drop of benchmarks/peers (``--model`` ipip-points, ipip or cg) to
 results.h5 like a restart, and times each piece of one attempt jitted alone (best of 5,
 BLAS on one thread as in ``beamcontact run``): the whole fused attempt, its Newton solve,
 one assembly with and without contact, one dense LU solve, the diagnostics, the post-step
-check, the advancement ratio, and for IPIP the candidate dispatch and the host selection.
+check, the advancement ratio, and for IPIP the candidate dispatch and the host selection
+("zones") or the device selection that the fused attempt includes ("points").
 
     python benchmarks/step_pieces.py [--model cg] [--t 0.76] [--h 2e-5]
 
@@ -37,6 +38,7 @@ from beamcontact.contact.advance import approach_ratio  # noqa: E402
 from beamcontact.contact.problem import freeze, missed_blocks  # noqa: E402
 from beamcontact.dynamics.hht import hht_step  # noqa: E402
 from beamcontact.dynamics.step import (  # noqa: E402
+    _closest_points,
     closest_pair_candidates,
     diagnostics,
     fused_step,
@@ -70,10 +72,18 @@ def main() -> None:
                 return closest_pair_candidates(state, model, h, np.float64(1.0), search,
                                                capacity=cap)
             pairs, q, _, motion = jax.device_get(candidates())
-            cs = cs_host = contact.closest_pair_set(pairs, q, float(motion))
-            rows += [("IPIP candidate dispatch", best_ms(candidates)),
-                     ("IPIP host selection",
-                      best_ms(lambda: contact.closest_pair_set(pairs, q, float(motion))))]
+            cs = contact.closest_pair_set(pairs, q, float(motion))
+            if contact.law.pairing == "zones":  # chosen on the host and passed to the step
+                cs_host = cs
+                rows += [("IPIP candidate dispatch", best_ms(candidates)),
+                         ("IPIP host selection",
+                          best_ms(lambda: contact.closest_pair_set(pairs, q,
+                                                                   float(motion))))]
+            else:  # "points": chosen inside the fused step (the host rule gives the same set)
+                select = jax.jit(_closest_points, static_argnames=("capacity",))
+                x_pred = positions(state.u + h * state.v + 0.5 * h * h * state.a, model)
+                rows.append(("IPIP points selection (part of the fused attempt)", best_ms(
+                    lambda: select(x_pred, motion, search, capacity=cap))))
         else:
             cs, _ = contact.frozen_set(positions(state.u, model), 0.01, cap)
         real = int(np.sum(np.asarray(cs.pairs)[:, 0] < search.elements.n_elements))
