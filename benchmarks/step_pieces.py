@@ -39,6 +39,7 @@ from beamcontact.contact.problem import freeze, missed_blocks  # noqa: E402
 from beamcontact.dynamics.hht import hht_step  # noqa: E402
 from beamcontact.dynamics.step import (  # noqa: E402
     _closest_points,
+    _predicted_x,
     closest_pair_candidates,
     diagnostics,
     fused_step,
@@ -81,7 +82,7 @@ def main() -> None:
                                                                    float(motion))))]
             else:  # "points": chosen inside the fused step (the host rule gives the same set)
                 select = jax.jit(_closest_points, static_argnames=("capacity",))
-                x_pred = positions(state.u + h * state.v + 0.5 * h * h * state.a, model)
+                x_pred = _predicted_x(state, model, h)
                 rows.append(("IPIP points selection (part of the fused attempt)", best_ms(
                     lambda: select(x_pred, motion, search, capacity=cap))))
         else:

@@ -68,9 +68,9 @@ class _Persistent:
         # program serves both (else each weak/strong mix of inputs would be saved apart)
         specs = [jax.ShapeDtypeStruct(leaf.aval.shape, leaf.aval.dtype) for leaf in leaves]
         path = self._path(treedef, specs, statics)
-        program = None if path is None else self._load(path)
-        if program is None and path is not None:
-            program = self._save(path, treedef, specs, statics)
+        program = None
+        if path is not None:
+            program = self._load(path) or self._save(path, treedef, specs, statics)
         if program is not None:
             exported, out_tree = program
             try:

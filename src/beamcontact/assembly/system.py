@@ -128,7 +128,7 @@ def contact_residual_tangent(x, contact: FrozenContact, n_dof: int, sparse: bool
         conn, f, k = block_forces(x, contact.elements, contact.blocks)
         return _scatter(jnp.zeros(n_dof, x.dtype), linear.zeros(n_dof, True),
                         element_dofs(conn), f, k)
-    zero = (jnp.zeros(n_dof, x.dtype), jnp.zeros((n_dof, n_dof), x.dtype))
+    zero = (jnp.zeros(n_dof, x.dtype), linear.zeros(n_dof, False))
     return fold_block_forces(x, contact.elements, contact.blocks, _scatter_blocks, zero)
 
 

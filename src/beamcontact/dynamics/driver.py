@@ -251,11 +251,10 @@ def _zone_set(loop: _Loop, model: Model, h: float, contact: ContactProblem):
     args = (loop.state, model, np.float64(h), np.float64(loop.motion_factor), contact.search)
     pairs, q, count, motion = jax.device_get(
         closest_pair_candidates(*args, capacity=loop.capacity))
-    cs = None if count > loop.capacity else contact.closest_pair_set(pairs, q, float(motion))
-    if int(count) > loop.capacity:
+    if count > loop.capacity:
         loop.capacity = contact.capacity_for(int(count))
         return None
-    return cs
+    return contact.closest_pair_set(pairs, q, float(motion))
 
 
 def _reject(loop: _Loop, rejection: Rejection, jump: float, control: StepControl) -> bool:

@@ -104,14 +104,11 @@ class NurbsCurve:
         square of the refinement.
         """
         breaks = np.unique(self.knots)
-        subdivisions, n_gauss = max(4, -(-32 // (len(breaks) - 1))), 12
+        subdivisions = max(4, -(-32 // (len(breaks) - 1)))
         grid = np.unique(np.concatenate([np.linspace(a, b, subdivisions + 1)
                                          for a, b in zip(breaks[:-1], breaks[1:], strict=True)]))
-        x, w = np.polynomial.legendre.leggauss(n_gauss)
-        a, b = grid[:-1], grid[1:]
-        uq = (0.5 * (b - a)[:, None] * x + 0.5 * (a + b)[:, None]).ravel()
-        speed = np.linalg.norm(self.evaluate(uq, 1)[1], axis=1).reshape(len(a), -1)
-        return grid, np.concatenate([[0.0], np.cumsum(0.5 * (b - a) * (speed @ w))])
+        return grid, np.concatenate([[0.0], np.cumsum(self._length_between(grid[:-1],
+                                                                           grid[1:]))])
 
     def parameters_at_lengths(self, fractions) -> np.ndarray:
         """Parameters u whose arc length from the start is ``fractions`` of the total.
