@@ -66,7 +66,7 @@ def run(model_name: str, t_end: float) -> None:
 
     t0 = time.perf_counter()
     res = solve_dynamic(model, state, an.t_end, an.alpha, opts, disc.length_scale,
-                        step_control(case), contact=contact, capacity=cap, on_step=keep)
+                        step_control(case), contact=contact, capacity=cap.blocks, on_step=keep)
     wall = time.perf_counter() - t0
     run_time = wall - res.compile_time
     share = float("nan")

@@ -15,6 +15,7 @@ The run to --t is kept in --out (default results_step_pieces/) and reused.
 
 import argparse
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -55,16 +56,25 @@ def main() -> None:
     ap.add_argument("--t", type=float, default=0.76, help="time of the state [s]")
     ap.add_argument("--h", type=float, default=2e-5, help="step of the attempt [s]")
     ap.add_argument("--out", type=Path, default=Path("results_step_pieces"))
+    ap.add_argument("--case", type=Path, default=None,
+                    help="time the state of this case file at --t instead of the peer drop")
     a = ap.parse_args()
-    case = parse_case(drop_case(a.model, t_end=a.t))
-    out = a.out / f"{a.model}_{a.t:g}"
+    if a.case is None:
+        case = parse_case(drop_case(a.model, t_end=a.t))
+        out = a.out / f"{a.model}_{a.t:g}"
+    else:
+        raw = tomllib.loads(a.case.read_text())
+        raw["analysis"]["t_end"] = a.t
+        case = parse_case(raw)
+        out = a.out / f"{a.case.stem}_{a.t:g}"
     if not (out / "results.h5").exists():
         run_case(case, case.to_toml(), out)
     disc = _discretize(case)
     model, disc = build_model(case, disc)
     contact = build_contact(case, disc)
     state, _ = _restart_state(case, out, model)
-    h, cap, search = np.float64(a.h), case.contact.capacity, contact.search
+    h, search = np.float64(a.h), contact.search
+    cap = contact.first_capacity(case.contact.capacity)
     rows = []
     with threadpool_limits(limits=1, user_api="blas"):
         cs_host = None
@@ -72,7 +82,7 @@ def main() -> None:
             def candidates():
                 return closest_pair_candidates(state, model, h, np.float64(1.0), search,
                                                capacity=cap)
-            pairs, q, _, motion = jax.device_get(candidates())
+            pairs, q, _, _, motion = jax.device_get(candidates())
             cs = contact.closest_pair_set(pairs, q, float(motion))
             if contact.law.pairing == "zones":  # chosen on the host and passed to the step
                 cs_host = cs
@@ -86,7 +96,7 @@ def main() -> None:
                 rows.append(("IPIP points selection (part of the fused attempt)", best_ms(
                     lambda: select(x_pred, motion, search, capacity=cap))))
         else:
-            cs, _ = contact.frozen_set(positions(state.u, model), 0.01, cap)
+            cs = contact.frozen_set(positions(state.u, model), 0.01, cap)[0]
         real = int(np.sum(np.asarray(cs.pairs)[:, 0] < search.elements.n_elements))
         args = (state, model, h, np.float64(0.0), np.float64(1e-9), np.float64(1e-10),
                 np.float64(1e-3), np.float64(1.0), search, cs_host)
@@ -105,9 +115,16 @@ def main() -> None:
                  ("one assembly with contact",
                   best_ms(lambda: assemble(state.u, model, 1.0, ls, fc)))]
         K = assemble(state.u, model, 1.0, ls, fc)[1]
-        solve = jax.jit(jnp.linalg.solve)
-        rows.append((f"one dense LU solve ({K.shape[0]} dofs)",
-                     best_ms(lambda: solve(K, state.u))))
+        if model.sparse:
+            from beamcontact.solvers import linear
+
+            solve = jax.jit(linear.solve)
+            rows.append((f"one sparse LU solve ({model.n_dof} dofs)",
+                         best_ms(lambda: solve(K, state.u))))
+        else:
+            solve = jax.jit(jnp.linalg.solve)
+            rows.append((f"one dense LU solve ({K.shape[0]} dofs)",
+                         best_ms(lambda: solve(K, state.u))))
         rows.append(("diagnostics", best_ms(lambda: diagnostics(state, model, fc))))
         x0 = positions(state.u, model)
         check = jax.jit(missed_blocks, static_argnames=("capacity",))

@@ -55,7 +55,9 @@ def _model():
 def _energy_and_force(x_ref, upper, ce, law, offsets):
     """Energy of the blocks of all element pairs, and the force (-dE/da, -dE/db) on the
     upper beam, at tangential offsets a (``offsets``) and normal offset b = 0."""
-    cs = ContactSet(ce.pairs[:-1], None, law)
+    lower, upper_el = jnp.nonzero(ce.beam == 0, size=4)[0], jnp.nonzero(ce.beam == 1, size=2)[0]
+    every = jnp.stack(jnp.meshgrid(lower, upper_el, indexing="ij"), -1).reshape(-1, 2)
+    cs = ContactSet(every, None, law)
 
     def energy(ab):
         return contact_energy(x_ref + upper[:, None] * ab, ce, cs)
@@ -210,8 +212,8 @@ def test_ratio_on_the_benchmark_numbers():
     w = np.full((26, 20), h)
     radius = np.full(26, 0.1)
     beam_of = np.repeat([0, 1], [20, 6])
-    pairs = np.vstack([[(i, j) for i in range(20) for j in range(20, 26)], [(26, 26)]])
-    res = cg_resolution(w, radius, beam_of, 1.2e-4, m, q_reg, element_pairs=pairs)
+    allowed = ~np.eye(2, dtype=bool)
+    res = cg_resolution(w, radius, beam_of, 1.2e-4, m, q_reg, allowed=allowed)
     assert res.under_resolved and res.beams == (0, 1)
     assert np.isclose(res.width, np.sqrt(2 * (0.2 + 1.2e-4) * 1.2e-4 / 8.5), rtol=1e-12)
     n_rec = int(np.ceil(20 * res.ratio))
@@ -221,7 +223,7 @@ def test_ratio_on_the_benchmark_numbers():
                  "ratio 10.5 > 1", "more than 100 %", "segments_per_element >= 211"):
         assert part in message
     finer = cg_resolution(np.full((26, n_rec), 0.5 / n_rec), radius, beam_of, 1.2e-4, m,
-                          q_reg, element_pairs=pairs)
+                          q_reg, allowed=allowed)
     assert not finer.under_resolved and finer.ratio <= THRESHOLD
     # a gap below q_reg (or a penetration) counts as q_reg; no contact in reach, as 0
     assert np.isclose(float(resolution_ratio(h, h, 0.1, 0.1, -1e-3, m, q_reg)), 11.52,

@@ -152,44 +152,74 @@ def test_no_nan_at_zero_or_negative_gap(law, dy):
 
 # --- broad phase against brute force ------------------------------------------------------
 
-def test_broad_phase_equals_brute_force():
-    rng = np.random.default_rng(7)
+def _random_beams(rng, n_beams, spread):
+    """Straight beams of random position, direction, length and element count."""
     beams = []
-    for k in range(4):
-        a = rng.uniform(0, 3, 2)
+    for k in range(n_beams):
+        a = rng.uniform(0, spread, 2)
         b = a + rng.uniform(-2, 2, 2)
         beams.append(beam(f"b{k}", line=(a.tolist(), b.tolist()), degree=3,
-                          elements=int(rng.integers(2, 6)), radius=0.05))
-    case = parse_case({"analysis": {"kind": "static"}, "beams": beams,
-                       "contact": {"model": "cg", "cutoff": 0.4, "segments_per_element": 6}})
-    model, disc = build_model(case)
-    ce = build_contact(case, disc).elements
-    x = np.asarray(model.x_ref)
-    margin = 0.2
-    pairs, count = jax.jit(candidate_pairs, static_argnums=3)(jnp.asarray(x), ce, margin, 256)
-    found = {tuple(p) for p in np.asarray(pairs)[: int(count)]}
-    # oracle 1: the same box test by plain loops over every pair of elements
+                          elements=int(rng.integers(1, 7)), radius=0.05))
+    return beams
+
+
+def _brute_force_pairs(x, ce, margin):
+    """The candidates by plain loops over every pair of elements: boxes of the control
+    points grown by margin overlap, and the pair may interact (different beams allowed
+    to touch; one beam: different elements with two points at least the exclusion
+    length apart along it)."""
     conn, valid, beam_of = map(np.asarray, (ce.conn, ce.loc_valid, ce.beam))
-    brute = set()
+    allowed, s, excl = np.asarray(ce.allowed), np.asarray(ce.s), float(ce.exclusion)
+    found = []
     E = len(beam_of)
     for i in range(E):
         for j in range(i + 1, E):
-            if beam_of[i] == beam_of[j]:
+            bi, bj = beam_of[i], beam_of[j]
+            if not allowed[bi, bj]:
+                continue
+            if bi == bj and np.max(np.abs(s[i][:, None] - s[j][None])) < excl:
                 continue
             pi, pj = x[conn[i][valid[i]]], x[conn[j][valid[j]]]
             if np.all(pi.min(0) - margin <= pj.max(0) + margin) and np.all(
                     pj.min(0) - margin <= pi.max(0) + margin):
-                brute.add((i, j))
-    assert found == brute and int(count) == len(brute)
-    # oracle 2: every pair of contact points closer than 2 margin lies in a candidate block
-    R = np.asarray(ce.R)
-    pts = np.einsum("esk,ekd->esd", R, x[conn])
-    for i in range(E):
-        for j in range(i + 1, E):
-            if beam_of[i] != beam_of[j]:
-                dmin = np.min(np.linalg.norm(pts[i][:, None] - pts[j][None], axis=-1))
-                if dmin < 2 * margin:
-                    assert (i, j) in found
+                found.append((i, j))
+    return found
+
+
+@pytest.mark.parametrize("seed, n_beams, spread, self_contact",
+                         [(7, 4, 3.0, False), (8, 12, 4.0, False), (9, 30, 6.0, True),
+                          (10, 40, 2.0, True)])
+def test_broad_phase_equals_brute_force(seed, n_beams, spread, self_contact):
+    """The grid search finds exactly the pairs of the all-pairs box test, in the same
+    (e1, e2) order, on random configurations (dense ones overflow the first cell
+    capacity and grow it)."""
+    from beamcontact.contact.broadphase import SearchCapacity, all_candidates
+
+    rng = np.random.default_rng(seed)
+    case = parse_case({"analysis": {"kind": "static"},
+                       "beams": _random_beams(rng, n_beams, spread),
+                       "contact": {"model": "cg", "cutoff": 0.4, "segments_per_element": 6,
+                                   "self_contact": self_contact}})
+    model, disc = build_model(case)
+    ce = build_contact(case, disc).elements
+    x = np.asarray(model.x_ref) + rng.normal(0.0, 0.05, model.x_ref.shape)  # bent beams
+    margin = 0.2
+    brute = _brute_force_pairs(x, ce, margin)
+    assert len(brute) > 0
+    assert [tuple(p) for p in all_candidates(x, ce, margin)] == brute
+    # with capacities too small the count and the load say so
+    pairs, count, load = jax.jit(candidate_pairs, static_argnums=3)(
+        jnp.asarray(x), ce, margin, SearchCapacity(4, 1))
+    assert int(count) > 4 or int(load) > 1
+    # every pair of contact points closer than 2 margin that may interact lies in a
+    # candidate block
+    conn, beam_of = np.asarray(ce.conn), np.asarray(ce.beam)
+    pts = np.einsum("esk,ekd->esd", np.asarray(ce.R), x[conn])
+    mask = np.asarray(ce.point_mask(*np.triu_indices(len(beam_of), 1)))
+    i, j = np.triu_indices(len(beam_of), 1)
+    d = np.linalg.norm(pts[i][:, :, None] - pts[j][:, None], axis=-1)
+    close = np.any((d < 2 * margin) & mask, axis=(1, 2))
+    assert set(zip(i[close], j[close], strict=True)) <= set(brute)
     lo, hi = element_boxes(jnp.asarray(x), ce, 0.0)
     assert np.all(np.asarray(lo) <= pts.min(axis=1) + 1e-12)  # convex hull property
     assert np.all(np.asarray(hi) >= pts.max(axis=1) - 1e-12)
@@ -423,7 +453,7 @@ def test_weights_of_cg_blocks_are_reference_arc_lengths():
 @pytest.mark.parametrize("law", ["cg", "ipip"])
 def test_listed_pairs_only_interact(law):
     """contact.pairs = [["a", "b"]]: a third beam c lying across both adds nothing. The
-    broad phase's universe holds only element pairs of a and b, and the contact energy and
+    broad phase considers only element pairs of a and b, and the contact energy and
     force equal those of the model without c (an independent two-beam computation)."""
     a = beam("a", line=([0, 0], [2, 0]), degree=4, elements=4, radius=0.1)
     b = beam("b", line=([0.5, 0.3], [1.7, 0.15]), degree=3, elements=3, radius=0.1)
@@ -441,10 +471,9 @@ def test_listed_pairs_only_interact(law):
 
     model3, disc3, p3, x3 = setup([a, b, c], pairs=[["b", "a"]])
     model2, disc2, p2, x2 = setup([a, b])
-    beam_of = np.asarray(p3.elements.beam)
-    universe = np.asarray(p3.elements.pairs)[:-1]
-    assert len(universe) == 4 * 3
-    assert {tuple(sorted(beam_of[e] for e in pr)) for pr in universe} == {(0, 1)}
+    allowed = np.asarray(p3.elements.allowed)
+    assert np.array_equal(allowed, [[0, 1, 0], [1, 0, 0], [0, 0, 0]])
+    assert p3.elements.element_pair_count() == 4 * 3
 
     def energy_and_force(model, problem, x):
         cs, _ = problem.grown_set(x, 0.0, 64)
@@ -469,7 +498,8 @@ def test_listed_pairs_only_interact(law):
 
 @pytest.mark.parametrize("pairs, message", [
     ([["a", "z"]], "contact.pairs[0]: unknown beam 'z'"),
-    ([["a", "a"]], "contact.pairs[0]: self-contact of 'a' is not implemented"),
+    ([["a", "a"]], "contact.pairs[0]: list pairs of different beams; for a beam touching "
+                   "itself set contact.self_contact = true"),
     ([["a", "b"], ["b", "a"]], "contact.pairs[1]: the pair ['b', 'a'] is listed twice"),
     ([], "contact.pairs"),
     ([["a"]], "contact.pairs[0]"),

@@ -58,7 +58,7 @@ def test_separated_beams_give_no_finding():
 
 
 def test_chunks_give_the_same_findings_and_pairs_are_ranked(monkeypatch):
-    """Chunks of one element pair (memory bound for big models) change nothing; several
+    """Chunks of one element pair of points (memory bound for big models) change nothing; several
     interpenetrating pairs of beams are reported deepest first. The post's points (spacing
     1/6) nearest to y = 0 and y = 0.15 are at y = 1/12 and 1/12 + 1/6: its smallest
     distances are 1/12 to the lower beam and 1/15 to the upper one."""
@@ -67,7 +67,6 @@ def test_chunks_give_the_same_findings_and_pairs_are_ranked(monkeypatch):
              beam("post", line=([5.5, -1], [5.5, 1]), elements=4, radius=0.02)]
     whole = _overlaps(beams)
     monkeypatch.setattr(overlap, "POINT_CHUNK", 9)
-    monkeypatch.setattr(overlap, "BOX_CHUNK", 1)
     assert _overlaps(beams) == whole
     assert [f.beams for f in whole] == [("upper", "post"), ("lower", "upper"),
                                         ("lower", "post")]

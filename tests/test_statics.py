@@ -377,7 +377,8 @@ def _mechanism(case):
     model, disc = build_model(case)
     contact = build_contact(case, disc)
     # the frozen set as solve_static finds it
-    cs, _ = contact.frozen_set(model.x_ref, 0.5 * contact.reach, contact.all_pairs)
+    cs = contact.frozen_set(model.x_ref, 0.5 * contact.reach,
+                            contact.first_capacity(contact.all_pairs))[0]
     return mechanism_message(model, contact, cs, initial_load_state(model),
                              [b.name for b in disc.beams])
 

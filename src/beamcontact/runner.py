@@ -359,7 +359,7 @@ def _initial_dynamic_state(case: Case, disc: Discretization, model: Model, conta
     u0 = jnp.zeros(model.n_dof)
     v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
     cs0 = None if contact is None else contact.grown_set(
-        model.x_ref, 0.0, case.contact.capacity)[0]
+        model.x_ref, 0.0, contact.first_capacity(case.contact.capacity))[0]
     state = initial_state(u0, v0, model, initial_load_state(model), freeze(contact, cs0))
     return state, cs0
 

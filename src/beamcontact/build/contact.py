@@ -1,9 +1,10 @@
 """From a validated case to its contact problem: the law (``Contact.law``), the contact
-points of every element, the beam pairs that may touch."""
+points of every element, the beam pairs that may touch (and each beam itself, under
+self-contact)."""
 
 import numpy as np
 
-from beamcontact.contact.points import contact_elements
+from beamcontact.contact.points import contact_elements, self_exclusion
 from beamcontact.contact.problem import ContactProblem
 
 
@@ -12,13 +13,16 @@ def build_contact(case, disc) -> ContactProblem | None:
     c = case.contact
     radii = [b.section.half_depth for b in disc.beams]
     law = c.law(radii)
-    if law is None or len(disc.beams) < 2:
+    if law is None or (len(disc.beams) < 2 and not c.self_contact):
         return None
     betas = c.densities if len(c.densities) == len(disc.beams) else [c.densities[0]] * len(
         disc.beams)
     beam_pairs = None if c.pairs is None else [
         (case.beam_index(a), case.beam_index(b)) for a, b in c.pairs]
-    ce = contact_elements(disc, c.segments_per_element, betas, beam_pairs)
+    exclusion = (c.self_exclusion if c.self_exclusion is not None
+                 else self_exclusion(max(radii), float(law.interaction_distance())))
+    ce = contact_elements(disc, c.segments_per_element, betas, beam_pairs, c.self_contact,
+                          exclusion)
     beam_of = np.asarray(ce.beam)
     local, n_el = np.zeros_like(beam_of), np.zeros(len(disc.beams), dtype=np.int64)
     for e, b in enumerate(beam_of):

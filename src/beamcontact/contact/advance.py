@@ -25,7 +25,7 @@ the solve, to the actual displacement of the step.
 
 import jax.numpy as jnp
 
-from beamcontact.contact.blocks import _block_geometry, over_real_chunks
+from beamcontact.contact.blocks import _block_geometry, over_real_chunks, point_mask
 from beamcontact.contact.points import ContactElements
 
 
@@ -53,7 +53,7 @@ def approach_ratio(x0, displacements, ce: ContactElements, pairs, slack):
             dr = _block_geometry(field, ce, chunk)[2]
             approach = approach + jnp.maximum(-jnp.sum(n * dr, axis=-1), 0.0)
         room = d - (r1 + r2)[:, None, None] + slack
-        real = (chunk[:, 0] < ce.n_elements)[:, None, None] & (room > 1e-2 * slack)
+        real = point_mask(ce, chunk) & (room > 1e-2 * slack)
         return jnp.max(jnp.where(real, approach / jnp.where(real, room, 1.0), 0.0),
                        axis=(1, 2), initial=0.0)
 

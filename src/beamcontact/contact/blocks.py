@@ -86,12 +86,21 @@ def _gather(ce: ContactElements, idx):
     return (ce.conn[safe], ce.R[safe], ce.radius[safe], ce.beta[safe])
 
 
-def arc_length_weights(ce: ContactElements, pairs):
-    """W_ij = w1_i w2_j for real blocks, 0 for padding."""
+def point_mask(ce: ContactElements, pairs):
+    """(C, n_s, n_s): the point pairs of real blocks that may interact (padding blocks,
+    and neighbours along one beam under self-contact, are False;
+    :meth:`ContactElements.point_mask`)."""
     valid = (pairs[:, 0] < ce.n_elements)[:, None, None]
     e1 = jnp.minimum(pairs[:, 0], ce.n_elements - 1)
     e2 = jnp.minimum(pairs[:, 1], ce.n_elements - 1)
-    return jnp.where(valid, ce.w[e1][:, :, None] * ce.w[e2][:, None, :], 0.0)
+    return valid & ce.point_mask(e1, e2)
+
+
+def arc_length_weights(ce: ContactElements, pairs):
+    """W_ij = w1_i w2_j for the point pairs that may interact, 0 for the rest."""
+    e1 = jnp.minimum(pairs[:, 0], ce.n_elements - 1)
+    e2 = jnp.minimum(pairs[:, 1], ce.n_elements - 1)
+    return jnp.where(point_mask(ce, pairs), ce.w[e1][:, :, None] * ce.w[e2][:, None, :], 0.0)
 
 
 def over_real_chunks(f, ce: ContactElements, pairs, fill):
@@ -119,11 +128,12 @@ def over_real_chunks(f, ce: ContactElements, pairs, fill):
 
 def block_distances(x, ce: ContactElements, pairs):
     """Centre-line distances of all point pairs of each block, shape (C, n_s, n_s)
-    (+inf in chunks of padding blocks, which are skipped)."""
+    (+inf for the pairs that may not interact, and in chunks of padding blocks, which are
+    skipped)."""
 
     def distances(chunk):
         r = _block_geometry(x, ce, chunk)[2]
-        return jnp.sqrt(jnp.sum(r * r, axis=-1))
+        return jnp.where(point_mask(ce, chunk), jnp.sqrt(jnp.sum(r * r, axis=-1)), jnp.inf)
 
     return over_real_chunks(distances, ce, pairs, jnp.inf)
 
@@ -140,7 +150,7 @@ def near_blocks(x, ce: ContactElements, pairs, limit):
     d = jnp.min(block_distances(x, ce, pairs), axis=(1, 2))
     keep = (pairs[:, 0] < ce.n_elements) & (d < limit)
     order = jnp.argsort(~keep, stable=True)
-    return jnp.where(keep[order][:, None], pairs[order], ce.pairs[-1])
+    return jnp.where(keep[order][:, None], pairs[order], ce.sentinel)
 
 
 def block_gaps(x, ce: ContactElements, pairs, d=None):

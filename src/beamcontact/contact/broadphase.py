@@ -1,17 +1,70 @@
-"""Broad phase: element bounding boxes from control points, fixed-capacity candidates.
+"""Broad phase: element bounding boxes on a uniform grid (cell lists), fixed capacities.
 
 A NURBS element with positive weights lies in the convex hull of its control points, so
 the box of its control points contains the element's axis; boxes grown by a margin m
-overlap for every pair of axes closer than 2 m. Element pairs of different beams whose
-grown boxes overlap are the candidates. The list has a fixed capacity (one compile per
-shape); ``count`` larger than the capacity is the overflow flag that makes the host
-reallocate and redo the step.
-Padding entries point at the sentinel element index E.
+overlap for every pair of axes closer than 2 m. The candidates are the element pairs
+whose grown boxes overlap and that may interact (:meth:`ContactElements.may_touch`:
+beams allowed to touch, neighbours along one beam excluded).
+
+Search without a list of all element pairs (the cost is linear in the number of
+elements for a bounded number of neighbours per element): the grid's cells are as wide
+as the largest grown box, so a box overlaps only boxes whose lower corner lies in its
+own cell or one of the eight around it. Every box is keyed by the cell of its lower
+corner, the keys are sorted, and each box looks at the first ``per_cell`` boxes of each of
+the nine cells (found by binary search in the sorted keys). The capacities are fixed (one
+compile per shape): the list holds ``blocks`` candidates and each cell is read up to
+``per_cell`` boxes; the true count and the fullest cell's load are returned, and a value
+above its capacity is the overflow flag that makes the host grow it and redo the step.
+
+The list is sorted by (e1, e2) with e1 < e2, whatever the order the grid visits the
+pairs in, so a list is a function of the configuration only. Padding entries point at
+the sentinel element index E.
 """
 
+from typing import NamedTuple
+
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from beamcontact.contact.points import ContactElements
+
+# cells per axis at most (boxes further out share the last one: still found, as the
+# exact box test follows); keys cx * rows + cy stay far inside int64
+MAX_CELLS = float(2**24)
+# the nine cells around (and including) a box's own, as (dx, dy)
+_NEIGHBOURS = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)])
+
+
+class SearchCapacity(NamedTuple):
+    """The fixed sizes of the search (static: a change recompiles).
+
+    Attributes:
+        blocks: length of the candidate list.
+        per_cell: boxes read from each grid cell.
+    """
+
+    blocks: int
+    per_cell: int
+
+    def grown(self, count: int, load: int, limit: int) -> "SearchCapacity":
+        """Room for ``count`` candidates and cells of ``load`` boxes (each a power of two
+        with 25 % to spare; the list at most ``limit``, the number of pairs that may
+        interact)."""
+        blocks = grown_capacity(count, limit) if count > self.blocks else self.blocks
+        per_cell = grown_capacity(load) if load > self.per_cell else self.per_cell
+        return SearchCapacity(blocks, per_cell)
+
+    def fits(self, count: int, load: int) -> bool:
+        """Whether a search that found ``count`` candidates with cells of at most ``load``
+        boxes was complete."""
+        return count <= self.blocks and load <= self.per_cell
+
+
+def grown_capacity(count: int, limit: int | None = None) -> int:
+    """A power of two with room for 1.25 times ``count``, at most ``limit``."""
+    power = int(2 ** np.ceil(np.log2(1.25 * max(count, 1))))
+    return power if limit is None else max(1, min(power, limit))
 
 
 def element_boxes(x, ce: ContactElements, margin):
@@ -23,25 +76,108 @@ def element_boxes(x, ce: ContactElements, margin):
     return lo - margin, hi + margin
 
 
-def candidate_pairs(x, ce: ContactElements, margin, capacity: int):
-    """Candidate element pairs (capacity, 2) and their true number (overflow if > capacity).
+def _cells(lo, hi):
+    """Integer cell (E, 2) of every box's lower corner on a grid as wide as the widest
+    box, and the number of rows that keeps the keys cx * rows + cy of the cells around
+    any box distinct from every occupied cell's."""
+    # a little wider than the widest box, so that round-off in the cell index never puts
+    # two touching boxes two cells apart
+    width = (1.0 + 1e-6) * jnp.max(hi - lo)
+    width = jnp.where((width > 0.0) & jnp.isfinite(width), width, 1.0)
+    rel = (lo - jnp.min(lo, axis=0)) / width
+    # a float that is not finite or does not fit has no defined integer value (the
+    # configuration of a diverged Newton iterate): every such box goes to cell 0 (the
+    # host discards that search), and no index leaves the key range
+    rel = jnp.where(jnp.isfinite(rel), jnp.clip(rel, 0.0, MAX_CELLS), 0.0)
+    cell = jnp.floor(rel).astype(jnp.int64)
+    # a row above the highest box and one below the lowest (cy = -1 wraps to the unused
+    # row rows - 1 of the column before) are never occupied
+    return cell, jnp.max(cell[:, 1]) + 3
 
-    Args:
-        x: control points (n_cp, 2).
-        ce: contact element data.
-        margin: each box grows by this much, so pairs closer than 2 margin are captured.
-        capacity: length of the candidate list.
+
+def candidate_pairs(x, ce: ContactElements, margin, capacity: SearchCapacity):
+    """Candidate element pairs (blocks, 2) at control points x, boxes grown by ``margin``.
+
+    Returns (pairs, count, load): the list sorted by (e1, e2), e1 < e2, padded with the
+    sentinel; the true number of candidates; the number of boxes in the fullest cell.
+    Complete when ``capacity.fits(count, load)``.
     """
+    E = ce.n_elements
     lo, hi = element_boxes(x, ce, margin)
-    i, j = ce.pairs[:-1, 0], ce.pairs[:-1, 1]
-    overlap = jnp.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
-    (idx,) = jnp.nonzero(overlap, size=capacity, fill_value=ce.pairs.shape[0] - 1)
-    return ce.pairs[idx], jnp.sum(overlap)
+    cell, rows = _cells(lo, hi)
+    key = cell[:, 0] * rows + cell[:, 1]
+    order = jnp.argsort(key, stable=True)
+    keys = key[order]
+    around = ((cell[:, None, 0] + _NEIGHBOURS[:, 0]) * rows
+              + cell[:, None, 1] + _NEIGHBOURS[:, 1])  # (E, 9)
+    first = jnp.searchsorted(keys, around, method="sort")
+    slot = first[..., None] + jnp.arange(capacity.per_cell)
+    inside = jnp.minimum(slot, E - 1)
+    j = order[inside]  # (E, 9, per_cell)
+    i = jnp.arange(E)[:, None, None]
+    hit = (slot < E) & (keys[inside] == around[..., None]) & (j > i)
+    hit &= jnp.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=-1)
+    hit &= ce.may_touch(jnp.broadcast_to(i, j.shape), j)
+    load = jnp.max(jnp.searchsorted(keys, keys, side="right", method="sort")
+                   - jnp.searchsorted(keys, keys, side="left", method="sort"))
+    count = jnp.sum(hit)
+    (idx,) = jnp.nonzero(hit.ravel(), size=capacity.blocks, fill_value=0)
+    first = jnp.broadcast_to(i, j.shape).ravel()[idx]
+    found = jnp.where(jnp.arange(capacity.blocks) < count,
+                      first * (E + 1) + j.ravel()[idx], E * (E + 1) + E)
+    found = jnp.sort(found)
+    return jnp.stack([found // (E + 1), found % (E + 1)], axis=1), count, load
 
 
-def box_gap_lower_bound(x, ce: ContactElements):
-    """A lower bound of the surface gap between different beams from the element boxes."""
+_candidates = jax.jit(candidate_pairs, static_argnames=("capacity",))
+
+
+def all_candidates(x, ce: ContactElements, margin: float) -> np.ndarray:
+    """Every candidate pair (P, 2) at x on the host, the capacities grown until the
+    search is complete (for one-off checks such as the initial overlaps)."""
+    capacity = SearchCapacity(64, 16)
+    limit = max(ce.element_pair_count(), 1)
+    while True:
+        pairs, count, load = jax.device_get(_candidates(jnp.asarray(x), ce,
+                                                        jnp.asarray(margin), capacity))
+        if capacity.fits(int(count), int(load)):
+            return np.asarray(pairs)[: int(count)]
+        capacity = capacity.grown(int(count), int(load), limit)
+
+
+# above this many elements the lower bound of the gap compares the boxes of whole beams
+# instead of elements (an E x E table of box distances, computed every step, would not
+# scale)
+ELEMENT_BOUND_LIMIT = 512
+
+
+def box_gap_lower_bound(x, ce: ContactElements, reach):
+    """A lower bound of the surface gap of every pair of points that may interact, for
+    a configuration whose search with boxes grown by ``reach`` found no candidate.
+
+    No candidate means every pair that may interact is more than 2 reach apart, so
+    the gap exceeds 2 reach - 2 R_max. Tighter, from the boxes: with at most
+    ELEMENT_BOUND_LIMIT elements the smallest distance of two element boxes that may
+    interact, less both radii; with more, that of two different beams' boxes.
+    """
     lo, hi = element_boxes(x, ce, 0.0)
-    i, j = ce.pairs[:-1, 0], ce.pairs[:-1, 1]
-    sep = jnp.maximum(jnp.maximum(lo[i] - hi[j], lo[j] - hi[i]), 0.0)
-    return jnp.min(jnp.sqrt(jnp.sum(sep**2, axis=1)) - ce.radius[i] - ce.radius[j])
+    E = ce.n_elements
+    if E <= ELEMENT_BOUND_LIMIT:
+        e = jnp.arange(E)
+        near = jnp.where(ce.may_touch(e[:, None], e[None, :]),
+                         _box_distances(lo, hi) - ce.radius[:, None] - ce.radius[None, :],
+                         jnp.inf)
+    else:
+        B = ce.n_beams
+        lo = jax.ops.segment_min(lo, ce.beam, B)
+        hi = jax.ops.segment_max(hi, ce.beam, B)
+        radius = jax.ops.segment_max(ce.radius, ce.beam, B)
+        near = jnp.where(ce.allowed & ~jnp.eye(B, dtype=bool),
+                         _box_distances(lo, hi) - radius[:, None] - radius[None, :], jnp.inf)
+    return jnp.maximum(jnp.min(near), 2.0 * reach - 2.0 * jnp.max(ce.radius))
+
+
+def _box_distances(lo, hi):
+    """Euclidean distances (n, n) between n axis-aligned boxes (0 where they overlap)."""
+    sep = jnp.maximum(jnp.maximum(lo[:, None] - hi[None, :], lo[None, :] - hi[:, None]), 0.0)
+    return jnp.sqrt(jnp.sum(sep**2, axis=-1))

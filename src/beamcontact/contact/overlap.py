@@ -1,14 +1,16 @@
 """Beams that interpenetrate in the initial configuration (checked once, on the host).
 
-For every pair of beams that may interact (the element pairs in ``ce.pairs``), the surface
-gap of every pair of contact points, q = |x_i - x_j| - R_i - R_j (the discrete gap of the
-contact models, DESIGN.md Sec. 3), is evaluated at the reference control points; a pair
-of beams with q < 0 somewhere is reported with its smallest gap and where it occurs.
+For every pair of points that may interact (:meth:`ContactElements.point_mask`: beams
+allowed to touch; on one beam under self-contact, points far enough apart along it), the
+surface gap q = |x_i - x_j| - R_i - R_j (the discrete gap of the contact models,
+DESIGN.md Sec. 3) is evaluated at the reference control points; a pair of beams (or a
+beam with itself) with q < 0 somewhere is reported with its smallest gap and where it
+occurs.
 
-Brute force over the element pairs, in chunks so that memory stays bounded, after a cheap
-box test: a contact point lies in the convex hull of its element's control points (NURBS
-with positive weights), so q < 0 needs the two control-point boxes, each grown by its
-radius, to overlap. Only the element pairs that pass are evaluated point by point.
+The element pairs come from the broad phase (:func:`all_candidates`, boxes grown by the
+largest radius): a contact point lies in the convex hull of its element's control points
+(NURBS with positive weights), so q < 0 needs the two boxes to overlap. Only those
+element pairs are evaluated point by point, in chunks so that memory stays bounded.
 """
 
 from collections.abc import Sequence
@@ -16,8 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# element pairs per chunk of the box test, and point pairs per chunk of the exact test
-BOX_CHUNK = 1 << 20
+from beamcontact.contact.broadphase import all_candidates
+
+# point pairs per chunk of the exact test
 POINT_CHUNK = 1 << 22
 
 
@@ -45,6 +48,10 @@ class Overlap:
     def message(self) -> str:
         """One line for the user."""
         (a, b), (fa, fb) = self.beams, self.fractions
+        if a == b:
+            return (f"beam {a!r} interpenetrates itself in the initial configuration: gap "
+                    f"{self.gap:.4g} m at ({self.point[0]:.4g}, {self.point[1]:.4g}) (at "
+                    f"{fa:.3g} and {fb:.3g} of its length)")
         return (f"beams {a!r} and {b!r} interpenetrate in the initial configuration: gap "
                 f"{self.gap:.4g} m at ({self.point[0]:.4g}, {self.point[1]:.4g}) ({a} at "
                 f"{fa:.3g} of its length, {b} at {fb:.3g})")
@@ -78,12 +85,12 @@ def initial_overlaps(x, ce, beam_names: Sequence[str]) -> list[Overlap]:
     """
     x = np.asarray(x, dtype=float)
     conn, radius = np.asarray(ce.conn), np.asarray(ce.radius, dtype=float)
-    valid, beam_of = np.asarray(ce.loc_valid), np.asarray(ce.beam)
+    beam_of = np.asarray(ce.beam)
     points = np.einsum("esk,ekd->esd", np.asarray(ce.R, dtype=float), x[conn])  # (E, S, 2)
-    pairs = np.asarray(ce.pairs)[:-1]  # the last row is a sentinel
-    pairs = _touching_boxes(x, conn, valid, radius, pairs)
+    pairs = all_candidates(x, ce, float(radius.max()))
+    mask = np.asarray(ce.point_mask(pairs[:, 0], pairs[:, 1])) if len(pairs) else None
     tol = 1e-9 * float(radius.max())  # equal gaps to round-off of the radii: a plateau
-    hits = _negative_gaps(points, radius, pairs, tol)
+    hits = _negative_gaps(points, radius, pairs, mask, tol)
     if hits is None:
         return []
     position = _arc_fractions(np.asarray(ce.w, dtype=float), beam_of)
@@ -97,30 +104,18 @@ def initial_overlaps(x, ce, beam_names: Sequence[str]) -> list[Overlap]:
     return sorted(found, key=lambda f: f.gap)
 
 
-def _touching_boxes(x, conn, valid, radius, pairs):
-    """The element pairs whose control-point boxes, grown by the radii, overlap."""
-    big = np.where(valid[..., None], x[conn], np.nan)
-    lo = np.nanmin(big, axis=1) - radius[:, None]
-    hi = np.nanmax(big, axis=1) + radius[:, None]
-    keep = []
-    for start in range(0, len(pairs), BOX_CHUNK):
-        i, j = pairs[start:start + BOX_CHUNK].T
-        ok = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
-        keep.append(pairs[start:start + BOX_CHUNK][ok])
-    return np.concatenate(keep) if keep else pairs[:0]
-
-
-def _negative_gaps(points, radius, pairs, tol) -> dict | None:
+def _negative_gaps(points, radius, pairs, mask, tol) -> dict | None:
     """For every element pair with a negative gap: its smallest gap, the indices of the
     two points (the middle of the point pairs within tol of it), and the number of point
-    pairs with q < 0."""
+    pairs with q < 0 (only the point pairs of ``mask``, (P, n_s, n_s), count)."""
     n_s = points.shape[1]
     rows = max(1, POINT_CHUNK // (n_s * n_s))
     parts = []
     for start in range(0, len(pairs), rows):
         i, j = pairs[start:start + rows].T
         d = np.linalg.norm(points[i][:, :, None, :] - points[j][:, None, :, :], axis=-1)
-        q = d - (radius[i] + radius[j])[:, None, None]
+        q = np.where(mask[start:start + rows], d - (radius[i] + radius[j])[:, None, None],
+                     np.inf)
         flat = q.reshape(len(i), -1)
         q_min = flat.min(axis=1)
         level = np.cumsum(flat <= (q_min + tol)[:, None], axis=1)

@@ -4,6 +4,14 @@ Each element is split into ``segments_per_element`` segments of equal parameter 
 with one point at the middle of each and the segment's reference arc length as weight.
 All elements of all beams are numbered globally; basis rows are padded to the largest
 number of local control points (padding rows of R are zero).
+
+Which points may interact: points of two beams whose entry of ``allowed`` is true (every
+two different beams, or the listed pairs); points of one beam (self-contact, where the
+beam's diagonal entry is true) only if their reference arc-length distance along the
+beam is at least ``exclusion`` (:func:`self_exclusion`), so that neighbours along the
+axis, which are always closer than R1 + R2, never count as a contact. No list of element
+pairs is kept: the broad phase (:mod:`beamcontact.contact.broadphase`) applies the rule to
+the boxes it finds.
 """
 
 from dataclasses import dataclass, field
@@ -20,18 +28,22 @@ from beamcontact.spline import nurbs_basis_derivatives
 @dataclass(frozen=True)
 class ContactElements:
     """Per global element: shapes conn, loc_valid (E, n_loc); R (E, n_s, n_loc);
-    w (E, n_s); radius, beta (E,); beam (E,) beam index; pairs (P + 1, 2) all element
-    pairs of different beams, the last row a sentinel (E, E); n_beams (static) the
-    number of beams."""
+    w (E, n_s) segment arc lengths; s (E, n_s) the points' reference arc-length
+    positions along their beam; radius, beta (E,); beam (E,) beam index; allowed
+    (B, B) which beams interact (the diagonal: self-contact); exclusion (scalar) the
+    smallest arc-length distance of two interacting points of one beam; n_beams (static)
+    the number of beams B."""
 
     conn: jax.Array
     loc_valid: jax.Array
     R: jax.Array
     w: jax.Array
+    s: jax.Array
     radius: jax.Array
     beta: jax.Array
     beam: jax.Array
-    pairs: jax.Array
+    allowed: jax.Array
+    exclusion: jax.Array
     n_beams: int = field(metadata=dict(static=True))
 
     @property
@@ -39,20 +51,70 @@ class ContactElements:
         """Number of elements of all beams."""
         return self.conn.shape[0]
 
+    @property
+    def sentinel(self) -> jax.Array:
+        """The padding entry (E, E) of candidate lists."""
+        return jnp.array([self.n_elements, self.n_elements])
 
-def contact_elements(disc, segments: int, betas, beam_pairs=None) -> ContactElements:
+    def may_touch(self, e1, e2):
+        """Whether elements e1 and e2 (global indices, any broadcastable shapes, < E) hold
+        a pair of points that may interact: their beams interact and, on one beam, they
+        are different elements with two points at least ``exclusion`` apart along it."""
+        b1, b2 = self.beam[e1], self.beam[e2]
+        ns = self.s.shape[1]
+        spread = jnp.maximum(self.s[e2, ns - 1] - self.s[e1, 0], self.s[e1, ns - 1] - self.s[e2, 0])
+        own = (e1 != e2) & (spread >= self.exclusion)
+        return self.allowed[b1, b2] & ((b1 != b2) | own)
+
+    def point_mask(self, e1, e2):
+        """(..., n_s, n_s) whether each point pair of elements e1, e2 (< E) may interact:
+        :meth:`may_touch` refined point by point on one beam."""
+        far = jnp.abs(self.s[e1][..., :, None] - self.s[e2][..., None, :]) >= self.exclusion
+        same = (self.beam[e1] == self.beam[e2])[..., None, None]
+        return self.allowed[self.beam[e1], self.beam[e2]][..., None, None] & (~same | far)
+
+    def element_pair_count(self) -> int:
+        """An upper bound of the number of element pairs that may interact (host)."""
+        counts = np.bincount(np.asarray(self.beam), minlength=self.n_beams).astype(np.int64)
+        allowed = np.asarray(self.allowed)
+        cross = np.triu(allowed, k=1) * np.outer(counts, counts)
+        own = np.diag(allowed) * counts * (counts - 1) // 2
+        return int(cross.sum() + own.sum())
+
+
+def self_exclusion(radius_max: float, interaction: float) -> float:
+    """The arc-length distance below which two points of one beam never interact: four
+    times the largest radius, and at least the law's interaction distance (finite for the
+    coarse-grained cutoff).
+
+    On a straight beam two points s apart are s apart in space, so with s >= 4 R their gap
+    is at least 2 R; on a beam bent to a radius of curvature rho >= R the chord of an arc
+    of 4 R is 2 rho sin(2 R / rho) > 2 R as well: the excluded neighbours are exactly the
+    pairs that would otherwise touch without any fold. A point pair of a fold (the two
+    legs of a hairpin, a rolled end resting on the beam) is much further apart along the
+    beam and interacts.
+    """
+    reach = interaction if np.isfinite(interaction) else 0.0
+    return float(max(4.0 * radius_max, reach))
+
+
+def contact_elements(disc, segments: int, betas, beam_pairs=None, self_contact: bool = False,
+                     exclusion: float = np.inf) -> ContactElements:
     """Contact points of every element of every beam (host-side, once).
 
     Args:
-        beam_pairs: pairs of beam indices that interact (None: every two different beams);
-            only their element pairs enter ``pairs``, the broad phase's universe.
+        beam_pairs: pairs of beam indices that interact (None: every two different beams).
+        self_contact: every beam also interacts with itself (points at least
+            ``exclusion`` apart along it).
+        exclusion: see :func:`self_exclusion`.
     """
     n_loc = max(b.curve.degree + 1 for b in disc.beams)
-    conn, valid, Rs, ws, radius, beta, beam_of = [], [], [], [], [], [], []
+    conn, valid, Rs, ws, ss, radius, beta, beam_of = [], [], [], [], [], [], [], []
     x, gw = np.polynomial.legendre.leggauss(8)
     for b_idx, info in enumerate(disc.beams):
         curve, mesh = info.curve, info.mesh
         p = curve.degree
+        start = 0.0  # arc length of the beam before the element
         for e, (a, b) in enumerate(zip(mesh.breaks[:-1], mesh.breaks[1:], strict=True)):
             edges = np.linspace(a, b, segments + 1)
             u0, u1 = edges[:-1, None], edges[1:, None]
@@ -63,6 +125,8 @@ def contact_elements(disc, segments: int, betas, beam_pairs=None) -> ContactElem
             speed = np.linalg.norm(curve.evaluate(uq.ravel(), 1)[1], axis=1).reshape(uq.shape)
             # one dot product per segment, as the weights have always been summed
             w = np.array([row @ gw for row in 0.5 * (u1 - u0) * speed])
+            ss.append(start + np.cumsum(w) - 0.5 * w)  # the middles, to quadrature accuracy
+            start += w.sum()
             c = np.zeros(n_loc, dtype=np.int64)
             c[: p + 1] = mesh.conn[e] + info.offset
             conn.append(c)
@@ -72,18 +136,16 @@ def contact_elements(disc, segments: int, betas, beam_pairs=None) -> ContactElem
             radius.append(info.section.half_depth)
             beta.append(betas[b_idx])
             beam_of.append(b_idx)
-    beam_of = np.array(beam_of)
-    n = len(beam_of)
-    i, j = np.triu_indices(n, k=1)
     n_beams = len(disc.beams)
     allowed = ~np.eye(n_beams, dtype=bool)
     if beam_pairs is not None:
         allowed[:] = False
         for b1, b2 in beam_pairs:
-            allowed[b1, b2] = allowed[b2, b1] = b1 != b2
-    cross = allowed[beam_of[i], beam_of[j]]
-    pairs = np.vstack([np.column_stack([i[cross], j[cross]]), [[n, n]]]).astype(np.int64)
+            allowed[b1, b2] = allowed[b2, b1] = True
+    if self_contact:
+        np.fill_diagonal(allowed, True)
     return ContactElements(conn=jnp.asarray(np.array(conn)), loc_valid=jnp.asarray(valid),
-                           R=as_float(Rs), w=as_float(ws), radius=as_float(radius),
-                           beta=as_float(beta), beam=jnp.asarray(beam_of),
-                           pairs=jnp.asarray(pairs), n_beams=n_beams)
+                           R=as_float(Rs), w=as_float(ws), s=as_float(ss),
+                           radius=as_float(radius), beta=as_float(beta),
+                           beam=jnp.asarray(np.array(beam_of)), allowed=jnp.asarray(allowed),
+                           exclusion=as_float(exclusion), n_beams=n_beams)

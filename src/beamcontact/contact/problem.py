@@ -8,8 +8,8 @@ distance plus twice the motion (:func:`near_blocks`); for a closest-pair law (IP
 closest pairs are selected on the host.
 The set is frozen during the Newton loop so the tangent stays consistent; after the step
 the driver checks that no interacting block was missed (:func:`missed_blocks`; else the
-step is redone with a larger motion margin) and that the capacity was enough (else it
-grows and the step is redone).
+step is redone with a larger motion margin) and that the capacities were enough (else
+they grow and the step is redone).
 """
 
 from dataclasses import dataclass
@@ -26,7 +26,11 @@ from beamcontact.contact.blocks import (
     block_gaps,
     near_blocks,
 )
-from beamcontact.contact.broadphase import box_gap_lower_bound, candidate_pairs
+from beamcontact.contact.broadphase import (
+    SearchCapacity,
+    box_gap_lower_bound,
+    candidate_pairs,
+)
 from beamcontact.contact.laws import ContactLaw
 from beamcontact.contact.points import ContactElements
 from beamcontact.contact.select import closest_pair_weights
@@ -76,16 +80,18 @@ class ContactProblem:
         """The device-side data of the search (:class:`ContactSearch`)."""
         return ContactSearch(self.elements, self.law, self.reach)
 
-    def frozen_set(self, x_pred, motion: float, capacity: int) -> tuple[ContactSet, int]:
-        """Candidate blocks (and closest-pair weights) for a step; returns (set, count)."""
+    def frozen_set(self, x_pred, motion: float,
+                   capacity: SearchCapacity) -> tuple[ContactSet, int, int]:
+        """Candidate blocks (and closest-pair weights) for a step; returns (set, count,
+        load), complete when ``capacity.fits(count, load)``."""
         if not self.law.closest_pairs:
-            pairs, count = _near_set(x_pred, self.elements, jnp.asarray(self.reach),
-                                   jnp.asarray(self.interaction), jnp.asarray(motion),
-                                   capacity=capacity)
-            return ContactSet(pairs, None, self.law), int(count)
-        pairs, q, count = _candidate_gaps(x_pred, self.elements,
-                                          jnp.asarray(self.reach + motion), capacity)
-        return self.closest_pair_set(pairs, q, motion), int(count)
+            pairs, count, load = _near_set(x_pred, self.elements, jnp.asarray(self.reach),
+                                           jnp.asarray(self.interaction), jnp.asarray(motion),
+                                           capacity=capacity)
+            return ContactSet(pairs, None, self.law), int(count), int(load)
+        pairs, q, count, load = _candidate_gaps(x_pred, self.elements,
+                                                jnp.asarray(self.reach + motion), capacity)
+        return self.closest_pair_set(pairs, q, motion), int(count), int(load)
 
     def closest_pair_set(self, pairs, q, motion: float) -> ContactSet:
         """The IPIP set from the candidate blocks and their gaps: the closest pairs chosen
@@ -99,90 +105,97 @@ class ContactProblem:
 
     @property
     def all_pairs(self) -> int:
-        """The largest useful capacity: the number of all element pairs of different beams,
-        rounded up to whole chunks of the block kernel."""
-        n = int(self.elements.pairs.shape[0]) - 1
-        return -(-n // CHUNK) * CHUNK
+        """The largest useful list length: the number of element pairs that may
+        interact, rounded up to whole chunks of the block kernel."""
+        n = self.elements.element_pair_count()
+        return max(-(-n // CHUNK) * CHUNK, CHUNK)
 
-    def capacity_for(self, count: int) -> int:
-        """Candidate-list length for ``count`` candidates (see :func:`grown_capacity`)."""
-        return grown_capacity(count, self.all_pairs)
+    def first_capacity(self, blocks: int | SearchCapacity) -> SearchCapacity:
+        """The capacities to start a run with: ``blocks`` candidates (at most
+        :attr:`all_pairs`) and 16 boxes per cell, or the given capacities (the list
+        shortened to at most :attr:`all_pairs`)."""
+        if isinstance(blocks, SearchCapacity):
+            return blocks._replace(blocks=min(blocks.blocks, self.all_pairs))
+        return SearchCapacity(min(blocks, self.all_pairs), 16)
 
-    def grown_set(self, x, motion: float, capacity: int) -> tuple[ContactSet, int]:
-        """:meth:`frozen_set` with the capacity grown until the candidates fit."""
-        capacity = min(capacity, self.all_pairs)
+    def grown(self, capacity: SearchCapacity, count: int, load: int) -> SearchCapacity:
+        """Capacities with room for ``count`` candidates and cells of ``load`` boxes."""
+        return capacity.grown(count, load, self.all_pairs)
+
+    def grown_set(self, x, motion: float,
+                  capacity: SearchCapacity | int) -> tuple[ContactSet, SearchCapacity]:
+        """:meth:`frozen_set` with the capacities grown until the search is complete (an
+        int: the list length to start from, see :meth:`first_capacity`)."""
+        capacity = self.first_capacity(capacity)
         while True:
-            cs, count = self.frozen_set(x, motion, capacity)
-            if count <= capacity:
+            cs, count, load = self.frozen_set(x, motion, capacity)
+            if capacity.fits(count, load):
                 return cs, capacity
-            capacity = self.capacity_for(count)
+            capacity = self.grown(capacity, count, load)
 
-    def check_step(self, x, cs: ContactSet, capacity: int) -> tuple[bool, float]:
+    def check_step(self, x, cs: ContactSet, capacity: SearchCapacity) -> tuple[bool, float]:
         """After a step: (did the broad phase at x find an interacting block the frozen set
-        lacks, or more candidates than ``capacity``; smallest surface gap, see
-        :func:`missed_blocks`)."""
-        missing, count, gap = _after_step(x, self.elements, cs.pairs,
-                                          jnp.asarray(self.reach),
-                                          jnp.asarray(self.interaction), capacity)
-        return bool(missing) or int(count) > capacity, float(gap)
+        lacks, or overflow; smallest surface gap, see :func:`missed_blocks`)."""
+        missing, count, load, gap = _after_step(x, self.elements, cs.pairs,
+                                                jnp.asarray(self.reach),
+                                                jnp.asarray(self.interaction), capacity)
+        return bool(missing) or not capacity.fits(int(count), int(load)), float(gap)
 
     def min_gap(self, x, cs: ContactSet) -> float:
-        """Smallest surface gap at x (see :func:`missed_blocks`), with a candidate list
-        as long as the frozen set's, grown if the candidates do not fit."""
-        capacity = cs.pairs.shape[0]
+        """Smallest surface gap at x (see :func:`missed_blocks`), the capacities grown
+        until the search is complete."""
+        capacity = self.first_capacity(cs.pairs.shape[0])
         while True:
-            _, count, gap = _after_step(x, self.elements, cs.pairs, jnp.asarray(self.reach),
-                                        jnp.asarray(self.interaction), capacity)
-            if int(count) <= capacity:
+            _, count, load, gap = _after_step(x, self.elements, cs.pairs,
+                                              jnp.asarray(self.reach),
+                                              jnp.asarray(self.interaction), capacity)
+            if capacity.fits(int(count), int(load)):
                 return float(gap)
-            capacity = self.capacity_for(int(count))
+            capacity = self.grown(capacity, int(count), int(load))
 
 
-def grown_capacity(count: int, limit: int | None = None) -> int:
-    """A power of two with room for 1.25 times ``count`` candidates, at most ``limit`` (the
-    number of all element pairs: a longer list could never fill)."""
-    power = int(2 ** np.ceil(np.log2(1.25 * max(count, 1))))
-    return power if limit is None else max(1, min(power, limit))
-
-
-def near_candidates(x, ce, reach, interaction, motion, capacity: int):
+def near_candidates(x, ce, reach, interaction, motion, capacity: SearchCapacity):
     """Blocks of an integrated law to freeze at the predicted x: the box candidates (grown
     by reach + motion) culled to those with a point pair closer than
-    interaction + 2 motion; returns (pairs, number of box candidates)."""
-    pairs, count = candidate_pairs(x, ce, reach + motion, capacity)
-    return near_blocks(x, ce, pairs, interaction + 2.0 * motion), count
+    interaction + 2 motion; returns (pairs, number of box candidates, fullest cell)."""
+    pairs, count, load = candidate_pairs(x, ce, reach + motion, capacity)
+    return near_blocks(x, ce, pairs, interaction + 2.0 * motion), count, load
 
 
 _near_set = jax.jit(near_candidates, static_argnames=("capacity",))
 
 
-def candidate_gaps(x, ce, margin, capacity: int):
-    """IPIP candidates at x: (pairs, the gaps of all their point pairs, count)."""
-    pairs, count = candidate_pairs(x, ce, margin, capacity)
-    return pairs, block_gaps(x, ce, pairs), count
+def candidate_gaps(x, ce, margin, capacity: SearchCapacity):
+    """IPIP candidates at x: (pairs, the gaps of all their point pairs, count, load)."""
+    pairs, count, load = candidate_pairs(x, ce, margin, capacity)
+    return pairs, block_gaps(x, ce, pairs), count, load
 
 
 _candidate_gaps = jax.jit(candidate_gaps, static_argnames=("capacity",))
 
 
-def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: int):
+def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: SearchCapacity):
     """Checks after a step at x: (an interacting block is not in ``frozen_pairs``, number
-    of box candidates, smallest surface gap).
+    of box candidates, fullest cell, smallest surface gap).
 
     Candidates: blocks whose boxes grown by ``reach`` overlap; interacting: a candidate
     with a point pair closer than ``interaction`` (inf: every candidate). The gap is the
     smallest over the point pairs of the candidates (all pairs within 2 reach), or, when
-    there are none, a lower bound from the boxes (then larger than 2 reach - R1 - R2).
+    there are none, a lower bound from the boxes (:func:`box_gap_lower_bound`, then larger
+    than 2 reach - R1 - R2).
     """
-    pairs, count = candidate_pairs(x, ce, reach, capacity)
+    pairs, count, load = candidate_pairs(x, ce, reach, capacity)
     E = ce.n_elements
     key = lambda p: p[:, 0] * (E + 1) + p[:, 1]  # noqa: E731
     d = block_distances(x, ce, pairs)
     near = jnp.min(d, axis=(1, 2)) < interaction
-    found = jnp.isin(key(pairs), key(frozen_pairs)) | (pairs[:, 0] >= E) | ~near
+    frozen = jnp.sort(key(frozen_pairs))  # membership by binary search: linear, not C^2
+    at = jnp.searchsorted(frozen, key(pairs), method="sort")
+    at = jnp.minimum(at, frozen.shape[0] - 1)
+    found = (frozen[at] == key(pairs)) | (pairs[:, 0] >= E) | ~near
     gap = jnp.min(block_gaps(x, ce, pairs, d))
-    gap = jnp.where(jnp.isfinite(gap), gap, box_gap_lower_bound(x, ce))
-    return ~jnp.all(found), count, gap
+    gap = jnp.where(jnp.isfinite(gap), gap, box_gap_lower_bound(x, ce, reach))
+    return ~jnp.all(found), count, load, gap
 
 
 _after_step = jax.jit(missed_blocks, static_argnames=("capacity",))

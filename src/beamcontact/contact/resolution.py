@@ -138,7 +138,7 @@ class Resolution:
                 for k, v in out.items()}
 
 
-def cg_resolution(w, radius, beam, q_min, m, q_reg=0.0, element_pairs=None) -> Resolution:
+def cg_resolution(w, radius, beam, q_min, m, q_reg=0.0, allowed=None) -> Resolution:
     """The worst rho over the interacting beam pairs, from the contact point data.
 
     Args:
@@ -151,8 +151,8 @@ def cg_resolution(w, radius, beam, q_min, m, q_reg=0.0, element_pairs=None) -> R
             then a lower bound, tight near the threshold (to q / (4 (m - 7/2))).
         m: exponent of the law.
         q_reg: regularisation gap of the law.
-        element_pairs: interacting element pairs (P, 2); rows with an index >= E (the
-            sentinel of ``ContactElements.pairs``) are ignored. None: every two beams.
+        allowed: (B, B) which beams interact (the diagonal: self-contact). None: every
+            two different beams.
     """
     w, radius, beam = np.asarray(w, float), np.asarray(radius, float), np.asarray(beam)
     n_beams = int(beam.max()) + 1
@@ -160,13 +160,10 @@ def cg_resolution(w, radius, beam, q_min, m, q_reg=0.0, element_pairs=None) -> R
     # anywhere, and a smaller radius means a narrower interaction
     h = np.array([w[beam == b].max() for b in range(n_beams)])
     R = np.array([radius[beam == b].min() for b in range(n_beams)])
-    if element_pairs is None:
+    if allowed is None:
         b1, b2 = np.triu_indices(n_beams, k=1)
     else:
-        p = np.asarray(element_pairs)
-        p = p[(p < len(beam)).all(axis=1)]
-        pairs = np.unique(np.sort(beam[p], axis=1), axis=0)
-        b1, b2 = pairs[:, 0], pairs[:, 1]
+        b1, b2 = np.nonzero(np.triu(np.asarray(allowed, dtype=bool)))
     gap = max(float(q_min), float(q_reg))
     if not b1.size:  # no interacting pair
         return Resolution(0.0, 0.0, np.inf, gap, (0, 0), w.shape[1], float(m))
@@ -182,7 +179,7 @@ def contact_resolution(ce, law: CoarseGrained, q_min) -> Resolution:
     """:func:`cg_resolution` for ``ContactElements`` ce and a coarse-grained law."""
     return cg_resolution(np.asarray(ce.w), np.asarray(ce.radius), np.asarray(ce.beam),
                          q_min, m=float(law.exponent), q_reg=float(law.q_reg),
-                         element_pairs=np.asarray(ce.pairs))
+                         allowed=np.asarray(ce.allowed))
 
 
 def _mm(x: float) -> str:

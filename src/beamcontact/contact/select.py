@@ -16,7 +16,8 @@ points. Two rules choose the pairs that carry the penalty (``Penalty.pairing``):
   (i, j). The number of zones jumps when a local minimum appears or vanishes, and with it
   the contact energy if the beams overlap there: this rule is not conservative.
 * ``"points"``: every contact point of either beam with its closest point on the other
-  beam, weight 1/2 from each side (no master and slave), a tie shared equally. The
+  beam, weight 1/2 from each side (no master and slave), a tie shared equally. Under
+  self-contact, every point of a beam with its closest allowed point of the same beam. The
   contact energy sum_i 1/2 Pi(min_j d_ij) + sum_j 1/2 Pi(min_i d_ij) is a continuous
   function of the configuration (a closest partner changes only where two distances are
   equal), so set changes do not create energy; the contact is distributed along a line
@@ -51,11 +52,14 @@ def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
     for c in real:
         keys.setdefault((beam_of[pairs[c, 0]], beam_of[pairs[c, 1]]), []).append(c)
     rule = _zone_weights if pairing == "zones" else _point_weights
-    for blocks in keys.values():
+    for (b1, b2), blocks in keys.items():
         # the grid spans the candidate blocks only: every cell outside them is +inf, so
         # neither rule can choose it or be changed by it
         corners = np.array([(local_element[pairs[c, 0]] * ns, local_element[pairs[c, 1]] * ns)
                             for c in blocks])
+        if b1 == b2 and pairing == "points":
+            _own_point_weights(q, W, blocks, corners, rtol, q_active)
+            continue
         corners -= corners.min(axis=0)
         grid = np.full(tuple(corners.max(axis=0) + ns), np.inf)
         for c, (i0, j0) in zip(blocks, corners, strict=True):
@@ -65,6 +69,32 @@ def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
         for c, (i0, j0) in zip(blocks, corners, strict=True):
             W[c] = weights[i0 : i0 + ns, j0 : j0 + ns]
     return W
+
+
+def _own_point_weights(q, W, blocks, corners, rtol, q_active) -> None:
+    """The "points" rule for the blocks of one beam with itself (self-contact), into W:
+    every point with its closest point of the same beam (weight 1/2, ties shared).
+
+    The blocks hold each pair of points once (first element before the second), so a
+    point is a row of some blocks and a column of others; on the symmetric grid of
+    the beam's points with itself each point is one row, the row rule chooses its
+    partners, and the weight of a pair is what it got as (i, j) plus as (j, i). (On a
+    grid of two beams, rows and columns are different points and both rules are
+    applied.)"""
+    ns = q.shape[1]
+    start = corners.min()
+    corners = corners - start
+    n = corners.max() + ns
+    grid = np.full((n, n), np.inf)
+    for c, (i0, j0) in zip(blocks, corners, strict=True):
+        grid[i0 : i0 + ns, j0 : j0 + ns] = q[c]
+        grid[j0 : j0 + ns, i0 : i0 + ns] = q[c].T
+    tol = rtol * np.maximum(1.0, np.abs(np.where(np.isfinite(grid), grid, 0.0)))
+    nearest = np.min(grid, axis=1, keepdims=True)
+    ties = (grid <= nearest + tol) & (nearest < q_active) & np.isfinite(grid)
+    rows = np.where(ties, 0.5 / np.maximum(np.sum(ties, axis=1, keepdims=True), 1), 0.0)
+    for c, (i0, j0) in zip(blocks, corners, strict=True):
+        W[c] = rows[i0 : i0 + ns, j0 : j0 + ns] + rows[j0 : j0 + ns, i0 : i0 + ns].T
 
 
 def _zone_weights(grid: np.ndarray, tol: np.ndarray, q_active: float) -> np.ndarray:
@@ -108,7 +138,10 @@ def point_weights_on_device(q, pairs, ce, q_active, rtol: float = 1e-9):
 
     The host rule works on one grid per pair of beams; here a point's closest partner on
     another beam is a segment minimum over the point's global index times the number of
-    beams plus the other beam. Equality, tie counts and shares use the host's arithmetic.
+    beams plus the other beam. A point of one beam under self-contact occurs on both
+    sides of its blocks (as the first element of some and the second of others): the
+    minimum and the tie count are taken over both sides. Equality, tie counts and shares
+    use the host's arithmetic.
     """
     import jax
     import jax.numpy as jnp
@@ -121,13 +154,17 @@ def point_weights_on_device(q, pairs, ce, q_active, rtol: float = 1e-9):
     tol = rtol * jnp.maximum(1.0, jnp.abs(jnp.where(jnp.isfinite(q), q, 0.0)))
     local = jnp.arange(ns)
     n_seg = E * ns * ce.n_beams
+    sides = [((own[:, None] * ns + local) * ce.n_beams + ce.beam[other][:, None], axis)
+             for own, other, axis in ((e1, e2, 2), (e2, e1, 1))]  # (segment (C, ns), axis)
+    nearest = jnp.minimum(*[jax.ops.segment_min(jnp.min(q, axis=axis).ravel(), seg.ravel(),
+                                                n_seg) for seg, axis in sides])
+    ties = [(q <= jnp.expand_dims(nearest[seg], axis) + tol)
+            & (jnp.expand_dims(nearest[seg], axis) < q_active) & jnp.isfinite(q)
+            for seg, axis in sides]
+    count = sum(jax.ops.segment_sum(jnp.sum(t, axis=axis).ravel(), seg.ravel(), n_seg)
+                for t, (seg, axis) in zip(ties, sides, strict=True))
     weights = jnp.zeros_like(q)
-    for own, other, axis in ((e1, e2, 2), (e2, e1, 1)):
-        seg = (own[:, None] * ns + local) * ce.n_beams + ce.beam[other][:, None]  # (C, ns)
-        nearest = jax.ops.segment_min(jnp.min(q, axis=axis).ravel(), seg.ravel(), n_seg)
-        near = jnp.expand_dims(nearest[seg], axis)
-        ties = (q <= near + tol) & (near < q_active) & jnp.isfinite(q)
-        count = jax.ops.segment_sum(jnp.sum(ties, axis=axis).ravel(), seg.ravel(), n_seg)
+    for t, (seg, axis) in zip(ties, sides, strict=True):
         share = 0.5 / jnp.maximum(jnp.expand_dims(count[seg], axis), 1)
-        weights = weights + jnp.where(ties, share, 0.0)
+        weights = weights + jnp.where(t, share, 0.0)
     return weights

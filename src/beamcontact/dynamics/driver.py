@@ -45,6 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beamcontact.assembly.model import Model
+from beamcontact.contact.broadphase import SearchCapacity
 from beamcontact.contact.problem import ContactProblem, freeze
 from beamcontact.dynamics.control import (
     GROW_MAX,
@@ -114,7 +115,7 @@ class _Loop:
     state: DynState
     account: EnergyAccount
     h_try: float
-    capacity: int
+    capacity: SearchCapacity | None
     start: float = field(default_factory=time.perf_counter)
     steps: int = 0
     iterations: int = 0
@@ -138,7 +139,7 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
                   options: NewtonOptions, length: float, control: StepControl, *,
                   dt_start: float | None = None, step0: int = 0,
                   on_step: Callable[[DynamicStep], None] | None = None,
-                  contact: ContactProblem | None = None, capacity: int = 64,
+                  contact: ContactProblem | None = None, capacity: int | SearchCapacity = 64,
                   account: EnergyAccount | None = None) -> DynamicResult:
     """Integrate from ``state`` to ``t_end`` with adaptive steps (module docstring).
 
@@ -157,13 +158,14 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
             momentum, min_gap, the local error ``error`` [m] and the cumulative
             ``E_dissipated`` and ``E_set_change``.
         contact: the contact problem (None: no contact).
-        capacity: initial length of the contact candidate list (grows on overflow).
+        capacity: initial length of the contact candidate list, or both capacities of
+            the search (:class:`SearchCapacity`); they grow on overflow.
         account: the energy account of the state (a restart); default zero sums and the
             energies of ``state`` under its initial contact set.
     """
     loop = _Loop(state, _initial_account(state, model, contact, capacity, account),
                  control.dt if dt_start is None else dt_start,
-                 capacity if contact is None else min(capacity, contact.all_pairs))
+                 None if contact is None else contact.first_capacity(capacity))
     tol = control.error_tol * length
     while t_end - loop.t > 1e-12 * max(control.dt, t_end):
         h = step_size(loop.t, t_end, loop.h_try)
@@ -200,7 +202,7 @@ def _initial_account(state: DynState, model: Model, contact: ContactProblem | No
     if account is not None and account.last is not None:
         return account
     cs0 = None if contact is None else contact.grown_set(positions(state.u, model), 0.0,
-                                                         capacity)[0]
+                                                         contact.first_capacity(capacity))[0]
     last = {k: float(v) for k, v in diagnostics(state, model, freeze(contact, cs0)).items()}
     return EnergyAccount(0.0 if account is None else account.E_dissipated,
                          0.0 if account is None else account.E_set_change, last)
@@ -236,8 +238,9 @@ def _attempt(loop: _Loop, model: Model, h: float, alpha: float, options: NewtonO
         # the candidates after a diverged Newton solve say nothing about the solution
         converged = StepFlags.CONVERGED in flags
         count = max(report["count"], report["count_after"] if converged else 0)
-        if count > loop.capacity:  # overflow: reallocate and redo
-            loop.capacity = contact.capacity_for(count)
+        load = max(report["load"], report["load_after"] if converged else 0)
+        if not loop.capacity.fits(count, load):  # overflow: reallocate and redo
+            loop.capacity = contact.grown(loop.capacity, count, load)
             return None
         if converged and StepFlags.MISSING_BLOCK in flags and loop.motion_factor < 16:
             loop.motion_factor *= 2.0  # the step moved further than foreseen: redo it
@@ -249,10 +252,10 @@ def _zone_set(loop: _Loop, model: Model, h: float, contact: ContactProblem):
     """The IPIP "zones" set of an attempt, chosen on the host, or None when the candidate
     list overflowed (then ``loop.capacity`` has grown)."""
     args = (loop.state, model, np.float64(h), np.float64(loop.motion_factor), contact.search)
-    pairs, q, count, motion = jax.device_get(
+    pairs, q, count, load, motion = jax.device_get(
         closest_pair_candidates(*args, capacity=loop.capacity))
-    if count > loop.capacity:
-        loop.capacity = contact.capacity_for(int(count))
+    if not loop.capacity.fits(int(count), int(load)):
+        loop.capacity = contact.grown(loop.capacity, int(count), int(load))
         return None
     return contact.closest_pair_set(pairs, q, float(motion))
 

@@ -19,6 +19,7 @@ from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
 from beamcontact.contact.advance import approach_ratio
 from beamcontact.contact.blocks import ContactSet, FrozenContact
+from beamcontact.contact.broadphase import SearchCapacity
 from beamcontact.contact.problem import (
     ContactProblem,
     ContactSearch,
@@ -36,7 +37,7 @@ DIAGNOSTICS = ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p
 # the quantities of one attempt (float64) and its counts (integers, the status flags first)
 VALUES = ("residual_norm", "initial_residual_norm", "h", "error", "approach", "min_gap",
           "E_contact_before", "energy_floor", *DIAGNOSTICS)
-COUNTS = ("flags", "iterations", "count", "count_after")
+COUNTS = ("flags", "iterations", "count", "count_after", "load", "load_after")
 
 
 @jax.jit
@@ -64,7 +65,7 @@ def host_diagnostics(state: DynState, model: Model, contact: ContactProblem | No
 @persistent_jit(static_argnames=("max_iterations", "capacity"))
 def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, motion_factor,
                search: ContactSearch | None = None, cs: ContactSet | None = None, *,
-               max_iterations: int, capacity: int = 0):
+               max_iterations: int, capacity: SearchCapacity | None = None):
     """One attempt at a step of (at most) h, fused into a single dispatch.
 
     Predictor; candidate blocks within the law's interaction distance plus the motion,
@@ -92,9 +93,10 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
     contact = None
     if search is not None:
         if cs is None and _device_pairing(search.law):
-            cs, report["count"] = _closest_points(x_pred, motion, search, capacity)
+            cs, report["count"], report["load"] = _closest_points(x_pred, motion, search,
+                                                                  capacity)
         elif cs is None:
-            pairs, report["count"] = near_candidates(
+            pairs, report["count"], report["load"] = near_candidates(
                 x_pred, search.elements, search.reach, search.law.interaction_distance(),
                 motion, capacity)
             cs = ContactSet(pairs, None, search.law)
@@ -137,19 +139,20 @@ def _advanced_step(state: DynState, x0, h, search: ContactSearch, cs: ContactSet
 
 
 def _contact_after_step(new: DynState, model: Model, x0, x_pred, motion,
-                        search: ContactSearch, cs: ContactSet, capacity: int):
-    """The post-step contact checks: (missed a block?, {count_after, min_gap, approach}).
+                        search: ContactSearch, cs: ContactSet, capacity: SearchCapacity):
+    """The post-step contact checks: (missed a block?, {count_after, load_after, min_gap,
+    approach}).
 
     A block is missed when the broad phase at the solution finds an interacting block the
     frozen set lacks, or when the step moved further from the predictor than the search
     margin (it may have passed blocks that were never candidates)."""
     ce, reach = search.elements, search.reach
     x_new = positions(new.u, model)
-    missing, count, gap = missed_blocks(x_new, ce, cs.pairs, reach,
+    missing, count, load, gap = missed_blocks(x_new, ce, cs.pairs, reach,
                                         search.law.interaction_distance(), capacity)
     deviation = jnp.max(jnp.linalg.norm(x_new - x_pred, axis=1))
     missing = missing | (deviation > motion + 1e-6 * reach)
-    return missing, {"count_after": count, "min_gap": gap,
+    return missing, {"count_after": count, "load_after": load, "min_gap": gap,
                      "approach": approach_ratio(x0, (x_new - x0,), ce, cs.pairs,
                                                 search.law.advance_slack())}
 
@@ -194,21 +197,22 @@ def _device_pairing(law) -> bool:
     return law.closest_pairs and law.pairing == "points"
 
 
-def _closest_points(x_pred, motion, search: ContactSearch, capacity: int):
+def _closest_points(x_pred, motion, search: ContactSearch, capacity: SearchCapacity):
     """IPIP with pairing = "points" at the predictor x_pred: candidates, gaps and the
     weights of :func:`~beamcontact.contact.select.point_weights_on_device`, blocks with a
-    weight first (as the host's selection orders them); returns (set, count)."""
-    pairs, q, count = candidate_gaps(x_pred, search.elements, search.reach + motion, capacity)
+    weight first (as the host's selection orders them); returns (set, count, load)."""
+    pairs, q, count, load = candidate_gaps(x_pred, search.elements, search.reach + motion,
+                                           capacity)
     W = point_weights_on_device(q, pairs, search.elements, 2.0 * motion)
     order = jnp.argsort(~jnp.any(W != 0.0, axis=(1, 2)), stable=True)
-    return ContactSet(pairs[order], W[order], search.law), count
+    return ContactSet(pairs[order], W[order], search.law), count, load
 
 
 @partial(jax.jit, static_argnames=("capacity",))
 def closest_pair_candidates(state: DynState, model: Model, h, motion_factor,
-                            search: ContactSearch, *, capacity: int):
+                            search: ContactSearch, *, capacity: SearchCapacity):
     """Predictor, motion bound, candidate blocks and their point-pair gaps in one dispatch,
-    for the host's closest-pair selection (IPIP): (pairs, gaps, count, motion)."""
+    for the host's closest-pair selection (IPIP): (pairs, gaps, count, load, motion)."""
     motion = motion_factor * _motion(state, h)
     return (*candidate_gaps(_predicted_x(state, model, h), search.elements,
                             search.reach + motion, capacity), motion)

@@ -152,8 +152,8 @@ def _check_references(case: Case) -> None:
                 raise CaseError(f"contact.pairs[{i}]: unknown beam {name!r} (beams are: "
                                 f"{known})")
         if pair[0] == pair[1]:
-            raise CaseError(f"contact.pairs[{i}]: self-contact of {pair[0]!r} is not "
-                            f"implemented; list pairs of different beams")
+            raise CaseError(f"contact.pairs[{i}]: list pairs of different beams; for a "
+                            f"beam touching itself set contact.self_contact = true")
         if frozenset(pair) in seen:
             raise CaseError(f"contact.pairs[{i}]: the pair {pair} is listed twice")
         seen.add(frozenset(pair))
@@ -161,6 +161,9 @@ def _check_references(case: Case) -> None:
     if nd not in (1, len(case.beams)):
         raise CaseError(f"contact.densities: give one value per beam ({len(case.beams)}) or "
                         f"one for all, got {nd}")
+    if case.contact.self_exclusion is not None and not case.contact.self_contact:
+        raise CaseError("contact.self_exclusion: applies only with contact.self_contact = "
+                        "true")
     if case.contact.model != "ipip" and case.contact.pairing != "zones":
         raise CaseError(f"contact.pairing: applies to model \"ipip\" only (model is "
                         f"\"{case.contact.model}\")")

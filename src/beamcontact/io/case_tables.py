@@ -257,6 +257,11 @@ class Contact(_Strict):
     other beam, 1/2 from each side (the contact energy is continuous, so the contact is
     conservative; along a line contact it acts as a line penalty of about eps per point
     spacing). See docs/theory.md, "IPIP pairing rules".
+    ``self_contact``: every beam also touches itself (a rolled or folded beam), with the
+    same law; two points of one beam interact only if they are at least
+    ``self_exclusion`` apart along it in the reference configuration [m] (default: four
+    times the largest radius, and at least the cutoff for "cg"), so that neighbours
+    along the axis never count as a contact. See docs/theory.md, "Self-contact".
     """
 
     model: Literal["none", "ipip", "cg"] = "none"
@@ -270,6 +275,8 @@ class Contact(_Strict):
     max_penetration: Positive | None = None
     capacity: Annotated[int, Field(ge=1)] = 128
     pairing: Literal["zones", "points"] = "zones"
+    self_contact: bool = False
+    self_exclusion: Positive | None = None
     pairs: Annotated[list[Annotated[list[str], BeforeValidator(_as_list),
                                     Field(min_length=2, max_length=2)]],
                      BeforeValidator(_as_list), Field(min_length=1)] | None = None

@@ -1,7 +1,9 @@
 """Load stepping with Newton-Raphson and automatic cut-back.
 
 The load factor lam runs from 0 to 1 in ``load_steps`` equal increments. A failed Newton
-solve restores the last converged state and halves the increment, up to ``max_cutbacks``
+solve, or a solution whose smallest contact gap is below -max_penetration (the contact set
+is frozen during an increment, so a large one can carry a point through a beam),
+restores the last converged state and halves the increment, up to ``max_cutbacks``
 times in a row; after a success the increment grows back (doubling) to the nominal one.
 This is the time stepping's controller (dynamics/control.py: ``StepControl``,
 ``Attempts``, ``Rejection``, ``next_step``) with the load factor as time and no error
@@ -31,6 +33,7 @@ from beamcontact.assembly.system import (
     update_load_state,
 )
 from beamcontact.contact.blocks import FrozenContact
+from beamcontact.contact.broadphase import SearchCapacity
 from beamcontact.contact.problem import ContactProblem, freeze
 from beamcontact.dynamics.control import Attempts, Rejection, StepControl, next_step
 from beamcontact.solvers.linear import to_dense
@@ -113,7 +116,7 @@ def mechanism_message(model: Model, contact: ContactProblem | None, cs, load_sta
 def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: float,
                  max_cutbacks: int = 12,
                  on_step: Callable[[StaticStep], None] | None = None,
-                 contact: ContactProblem | None = None, capacity: int = 64,
+                 contact: ContactProblem | None = None, capacity: int | SearchCapacity = 64,
                  beam_names: Sequence[str] | None = None) -> StaticResult:
     """Ramp the loads from 0 to 1 and return the last converged state.
 
@@ -126,12 +129,13 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         on_step: called with every converged step (write results there).
         contact: the contact problem (None: no contact). Its candidate set is found at the
             start of every load step and frozen during Newton.
-        capacity: initial length of the contact candidate list (grows on overflow).
+        capacity: initial length of the contact candidate list, or both capacities of
+            the search (:class:`SearchCapacity`); they grow on overflow.
         beam_names: the beams' names in model order, for the message when the supports
             leave a beam free (None: beams are named by number and control points).
     """
     loop = _LoadLoop(jnp.zeros(model.n_dof), initial_load_state(model), 1.0 / load_steps,
-                     capacity if contact is None else min(capacity, contact.all_pairs),
+                     None if contact is None else contact.first_capacity(capacity),
                      0.0 if contact is None else 0.5 * contact.reach)
     loop.dlam = loop.nominal
     # the controller of time stepping with the load factor as time: steps of at most the
@@ -151,10 +155,10 @@ def solve_static(model: Model, load_steps: int, options: NewtonOptions, length: 
         res = _load_attempt(loop, model, dl, tol, options, contact)
         if res is None:  # the candidate list or the search margin grew: redo
             continue
-        if not bool(res.converged):
-            rejection = Rejection("newton", "Newton did not converge", 0.5 * dl)
+        rejection = _rejection(res, loop.gap, contact, dl)
+        if rejection is not None:
             if loop.attempts.reject(rejection, control):
-                return loop.result("failed", _failure(loop, res, dl))
+                return loop.result("failed", _failure(loop, res, dl, rejection))
             loop.dlam = rejection.retry
             continue
         loop.attempts.accept()
@@ -176,8 +180,9 @@ class _LoadLoop:
     u: jax.Array
     state: LoadState
     nominal: float
-    capacity: int
+    capacity: SearchCapacity | None
     margin: float
+    gap: float = float("inf")  # smallest gap of the last converged attempt
     lam: float = 0.0
     dlam: float = 0.0
     cs: object = None
@@ -203,16 +208,17 @@ def _load_attempt(loop: _LoadLoop, model: Model, dl: float, tol, options: Newton
     frozen there; None when the candidate list overflowed or the solution left the search
     margin (both grown in ``loop``; the attempt is redone)."""
     if contact is not None:
-        loop.cs, count = contact.frozen_set(loop.x(model), loop.margin, loop.capacity)
-        if count > loop.capacity:
-            loop.capacity = contact.capacity_for(count)
+        loop.cs, count, load = contact.frozen_set(loop.x(model), loop.margin, loop.capacity)
+        if not loop.capacity.fits(count, load):
+            loop.capacity = contact.grown(loop.capacity, count, load)
             return None
     t0 = time.perf_counter()
     res = load_step(loop.u, model, jnp.asarray(loop.lam + dl), loop.state, tol,
                       max_iterations=options.max_iterations, contact=freeze(contact, loop.cs))
     if bool(res.converged) and contact is not None:
         x_new = model.x_ref + res.u.reshape(-1, 2)
-        if contact.check_step(x_new, loop.cs, loop.capacity)[0]:
+        missing, loop.gap = contact.check_step(x_new, loop.cs, loop.capacity)
+        if missing:
             loop.margin *= 4.0  # the step moved further than the margin foresaw: redo it
             return None
     if loop.compile_time is None:
@@ -221,9 +227,23 @@ def _load_attempt(loop: _LoadLoop, model: Model, dl: float, tol, options: Newton
     return res
 
 
-def _failure(loop: _LoadLoop, res, dl: float) -> str:
-    """The message of load stepping stopped by Newton failing ``max_cutbacks`` times."""
-    return (f"Newton did not converge at load factor {loop.lam + dl:.6g} "
+def _rejection(res, gap: float, contact: ContactProblem | None,
+               dl: float) -> Rejection | None:
+    """Why a load step is redone with half the increment: Newton did not converge, or
+    the solution penetrates deeper than ``max_penetration`` (the contact set is frozen
+    at the start of the step, so a point that was out of reach there can pass into, or
+    through, another beam or its own within one increment); None: accepted."""
+    if not bool(res.converged):
+        return Rejection("newton", "Newton did not converge", 0.5 * dl)
+    if contact is not None and gap < -contact.max_penetration:
+        return Rejection("penetration", f"the smallest gap {gap:.3g} m is below "
+                         f"-max_penetration = {-contact.max_penetration:.3g} m", 0.5 * dl)
+    return None
+
+
+def _failure(loop: _LoadLoop, res, dl: float, rejection: Rejection) -> str:
+    """The message of load stepping stopped after ``max_cutbacks`` successive halvings."""
+    return (f"{rejection.reason} at load factor {loop.lam + dl:.6g} "
             f"({int(res.iterations)} iterations, residual {float(res.residual_norm):.3e} "
             f"from {float(res.initial_residual_norm):.3e}) after "
             f"{loop.attempts.consecutive - 1} successive halvings of the load increment (now "
