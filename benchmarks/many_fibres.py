@@ -47,7 +47,8 @@ def one(n: int, model: str, settle: float, window: float) -> dict:
     from beamcontact.runner import step_control
     from beamcontact.solvers.newton import NewtonOptions
 
-    case = parse_case(pile_case(n, seed=1, model=model, rows=4, t_end=settle))
+    case = parse_case(pile_case(n, seed=1, model=model, rows=4, t_end=settle,
+                                container="rods"))
     t0 = time.perf_counter()
     model_, disc = build_model(case)
     contact = build_contact(case, disc)

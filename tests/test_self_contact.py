@@ -162,3 +162,46 @@ def test_large_load_increment_does_not_carry_a_beam_through_another():
     assert end["tip_y"] > end["below_y"] + R  # on the lower beam, not through it
     assert end["tip_y"] < end["below_y"] + 2 * R + 2e-3  # and resting on it
     assert end["tip_uy"] < -0.03  # it went down the whole gap
+
+
+def _rolled_cantilever(self_contact: bool):
+    """A clamped cantilever (L = 1 m, R = 5 mm, 40 cubic C^2 elements) under an end moment
+    of 2.2 pi EI / L in 22 load steps: without contact it rolls into 1.1 turns of a
+    circle of radius L / (2.2 pi). Contact: a soft coarse-grained repulsion (m = 6,
+    smooth, so that load control can follow the tip as it comes to rest)."""
+    E, L = 1.0e9, 1.0
+    M = 2.2 * np.pi * bending_stiffness(E, 0.005) / L
+    raw = {"analysis": {"kind": "static", "load_steps": 22},
+           "beams": [beam("cantilever", line=((0, 0), (L, 0)), degree=3, elements=40,
+                          continuity=2, radius=0.005, E=E,
+                          supports=[{"at": "start", "type": "clamped"}])],
+           "loads": [{"beam": "cantilever", "at": "end", "moment": M}],
+           "contact": {"model": "cg", "exponent": 6.0, "k": 1.4e-6, "cutoff": 0.02,
+                       "segments_per_element": 8, "self_contact": self_contact},
+           "output": {"points": [{"name": "tip", "beam": "cantilever", "at": "end"}]}}
+    return bc.simulate(parse_case(raw))
+
+
+def test_cantilever_rolled_past_a_full_circle_rests_on_itself():
+    """Issue 13's static test. With self-contact the free end comes to rest against the
+    beam where it began a full turn earlier: the run reaches the full moment, the tip
+    stays short of the clamp (x < 0) and within one diameter of it, the contact carries
+    load, and the smallest gap stays above -1 % of R (the repulsion keeps it positive).
+    Without self-contact the tip rolls on through the beam: at the full moment it lies
+    inside the beam's own material near its start."""
+    R = 0.005
+    res = _rolled_cantilever(True)
+    assert res.status == "completed"
+    h = res.history
+    assert h["load_factor"].iloc[-1] == pytest.approx(1.0)
+    tip = np.array([h["tip_x"].iloc[-1], h["tip_y"].iloc[-1]])
+    assert tip[0] < 0.0 and np.hypot(*tip) < 2 * R
+    assert h["E_contact"].iloc[-1] > 0.0
+    assert h["min_gap"].min() > -0.01 * R
+    free = _rolled_cantilever(False)
+    assert free.status == "completed"
+    tip = np.array([free.history["tip_x"].iloc[-1], free.history["tip_y"].iloc[-1]])
+    assert tip[0] > 0.05  # past the clamp, 0.1 of a turn further on
+    axis = free.states.centrelines["cantilever"][-1]
+    start = axis[: len(axis) // 2]  # the first half turn
+    assert np.min(np.linalg.norm(start - tip, axis=1)) < R

@@ -1,5 +1,6 @@
 """Generate the fibre-pile case: N elastic fibres of random length and orientation
-(seeded) dropped into a container of three beams clamped at both ends.
+(seeded) dropped into a container: three rigid walls (``[[obstacles]]``), or steel rods
+clamped at both ends (``--container rods``).
 
     python examples/fibre_pile/pile.py --fibres 200 --model cg > case_cg.toml
 
@@ -24,11 +25,15 @@ FLOOR_CELLS = 4  # cells spanned by each rod of the floor
 
 
 def pile_case(n_fibres: int, seed: int = 1, model: str = "cg", rows: int = 10,
-              t_end: float = 1.0, dt: float = 2.0e-3) -> dict:
+              t_end: float = 1.0, dt: float = 2.0e-3, container: str = "walls") -> dict:
     """The case (a dict for :func:`beamcontact.io.case.parse_case`) of ``n_fibres``
     fibres on a grid of ``rows`` rows of cells in a container as wide as the grid: with
     the rows fixed, more fibres make a wider pile of the same height, in which every
-    fibre has about as many neighbours (benchmarks/many_fibres.py)."""
+    fibre has about as many neighbours (benchmarks/many_fibres.py). ``container``:
+    "walls", a floor and two side walls as rigid obstacles, or "rods", clamped steel
+    rods (beams) in the same places."""
+    if container not in ("walls", "rods"):
+        raise ValueError(f'container must be "walls" or "rods", got {container!r}')
     rng = np.random.default_rng(seed)
     columns = max(2, math.ceil(n_fibres / rows))
     rows = math.ceil(n_fibres / columns)
@@ -47,6 +52,28 @@ def pile_case(n_fibres: int, seed: int = 1, model: str = "cg", rows: int = 10,
                       "section": {"shape": "circle", "radius": RADIUS},
                       "material": {"E": E_FIBRE, "density": DENSITY}})
     height = gap + rows * CELL + CELL
+    contact = {"model": model, "segments_per_element": 6, "capacity": 4 * n_fibres + 64}
+    if model == "cg":
+        # steric repulsion (m = 12): two parallel fibres push each other with about
+        # 5 N/m (the weight of ten fibres above) at a gap of R/5; the cutoff, at a gap
+        # of 2.5 R, leaves less than 1e-6 of that
+        contact.update(exponent=12, k=3.0e-24, cutoff=4.5 * RADIUS)
+    else:
+        # a line penalty of about 1e5 N/m per 8 mm spacing: 5 N/m presses 0.4 um in
+        contact.update(penalty=1.0e5, pairing="points")
+    case = {"title": f"{n_fibres} fibres dropped into a container ({model})",
+            "analysis": {"kind": "dynamic", "t_end": t_end, "dt": dt, "alpha": -0.1,
+                         "gravity": [0.0, -9.81]},
+            "beams": beams, "contact": contact}
+    if container == "walls":
+        case["obstacles"] = [
+            {"name": "floor", "wall": {"point": [0.0, 0.0], "normal": [0.0, 1.0]}},
+            {"name": "left", "wall": {"point": [-gap, 0.0], "normal": [1.0, 0.0]}},
+            {"name": "right", "wall": {"point": [width + gap, 0.0], "normal": [-1.0, 0.0]}}]
+        # the error bound is a fraction of the longest beam: 20 um per step (R / 200)
+        case["solver"] = {"error_tol": 2.0e-5 / LENGTH_MAX}
+        case["output"] = {"points": [{"name": "first", "beam": "fibre0", "at": 0.5}]}
+        return case
     clamped = [{"at": "start", "type": "clamped"}, {"at": "end", "type": "clamped"}]
     wall = {"degree": 3, "section": {"shape": "circle", "radius": WALL_RADIUS},
             "material": {"E": 2.0e11, "density": 7850.0}, "supports": clamped,
@@ -65,23 +92,10 @@ def pile_case(n_fibres: int, seed: int = 1, model: str = "cg", rows: int = 10,
         {"name": "right", "line": {"start": [width + gap, gap], "end": [width + gap, height]},
          "elements": side, **wall},
     ]
-    contact = {"model": model, "segments_per_element": 6, "capacity": 4 * n_fibres + 64}
-    if model == "cg":
-        # steric repulsion (m = 12): two parallel fibres push each other with about
-        # 5 N/m (the weight of ten fibres above) at a gap of R/5; the cutoff, at a gap
-        # of 2.5 R, leaves less than 1e-6 of that
-        contact.update(exponent=12, k=3.0e-24, cutoff=4.5 * RADIUS)
-    else:
-        # a line penalty of about 1e5 N/m per 8 mm spacing: 5 N/m presses 0.4 um in
-        contact.update(penalty=1.0e5, pairing="points")
-    return {"title": f"{n_fibres} fibres dropped into a container ({model})",
-            "analysis": {"kind": "dynamic", "t_end": t_end, "dt": dt, "alpha": -0.1,
-                         "gravity": [0.0, -9.81]},
-            "beams": beams, "contact": contact,
-            # the error bound is a fraction of the longest beam (a wall): 20 um per step
-            # (R / 200)
-            "solver": {"error_tol": 2.0e-5 / max(height - gap, edges[1] - edges[0])},
-            "output": {"points": [{"name": "floor_mid", "beam": "floor0", "at": 0.5}]}}
+    # the error bound is a fraction of the longest beam (a wall): 20 um per step (R / 200)
+    case["solver"] = {"error_tol": 2.0e-5 / max(height - gap, edges[1] - edges[0])}
+    case["output"] = {"points": [{"name": "floor_mid", "beam": "floor0", "at": 0.5}]}
+    return case
 
 
 def main(argv=None) -> None:
@@ -91,11 +105,12 @@ def main(argv=None) -> None:
     ap.add_argument("--model", choices=["cg", "ipip"], default="cg")
     ap.add_argument("--rows", type=int, default=10)
     ap.add_argument("--t-end", type=float, default=1.0)
+    ap.add_argument("--container", choices=["walls", "rods"], default="walls")
     args = ap.parse_args(argv)
     from beamcontact.io.case import parse_case
 
     case = parse_case(pile_case(args.fibres, args.seed, args.model, args.rows,
-                                t_end=args.t_end))
+                                t_end=args.t_end, container=args.container))
     sys.stdout.write(case.to_toml())
 
 

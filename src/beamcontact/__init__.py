@@ -29,8 +29,8 @@ _LAZY = {
     "SavedStates": "beamcontact.api",
     **{name: "beamcontact.io.case" for name in (
         "Case", "CaseError", "Analysis", "Beam", "Line", "Arc", "Nurbs", "CircleSection",
-        "RectangleSection", "Material", "Support", "Load", "Contact", "Solver", "Output",
-        "OutputPoint")},
+        "RectangleSection", "Material", "Support", "Load", "Contact", "Obstacle", "Wall",
+        "Circle", "Solver", "Output", "OutputPoint")},
 }
 
 __all__ = ["enable_x64", "require_x64", "__version__", *_LAZY]

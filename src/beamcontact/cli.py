@@ -350,7 +350,8 @@ def check(case: Annotated[Path, typer.Argument(help="Case file (TOML).")]) -> No
     parsed, _ = _load(case)
     _check_static_restraints(parsed)
     typer.echo(f"{case}: valid ({parsed.analysis.kind}, {len(parsed.beams)} beam(s), "
-               f"{len(parsed.loads)} load(s))")
+               f"{len(parsed.loads)} load(s)"
+               + (f", {len(parsed.obstacles)} obstacle(s))" if parsed.obstacles else ")"))
 
 
 def main() -> None:

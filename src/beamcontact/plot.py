@@ -20,9 +20,41 @@ def _save(fig: Figure, path: Path | None, dpi: int = 150) -> Figure:
     return fig
 
 
+def draw_obstacles(ax, obstacles, lo, hi) -> None:
+    """The rigid obstacles (case ``[[obstacles]]``) in grey under everything else: a wall
+    as its surface line with the solid side shaded, a circle as a filled disk; the view
+    [lo, hi] set by the caller is kept."""
+    from matplotlib.patches import Polygon
+
+    from beamcontact.obstacle_outlines import obstacle_outlines, solid_side
+
+    if not obstacles:
+        return
+    xlim, ylim = ax.get_xlim(), ax.get_ylim()
+    for o, (_, line) in zip(obstacles, obstacle_outlines(obstacles, lo, hi), strict=True):
+        ax.add_patch(Polygon(solid_side(o, line), closed=True, facecolor="0.88",
+                             edgecolor="none", zorder=0))
+        ax.plot(line[:, 0], line[:, 1], color="0.45", lw=1.0, zorder=0.5)
+    ax.set_xlim(xlim)
+    ax.set_ylim(ylim)
+
+
+def _view(beams: list[np.ndarray], obstacles) -> tuple[np.ndarray, np.ndarray]:
+    """The box of all beam points, and of the circles among the obstacles (walls are
+    infinite: the view follows the beams)."""
+    pts = [np.concatenate(beams)]
+    for o in obstacles or ():
+        if o.circle is not None:
+            c, r = np.asarray(o.circle.center), o.circle.radius
+            pts.append(np.array([c - r, c + r]))
+    allpts = np.concatenate(pts)
+    return allpts.min(axis=0), allpts.max(axis=0)
+
+
 def plot_shapes(shapes: list[tuple[str, list[np.ndarray]]], reference: list[np.ndarray],
-                path: Path | None = None, title: str = "") -> Figure:
-    """Axes of all beams: reference dashed, then one colour per labelled state."""
+                path: Path | None = None, title: str = "", obstacles=()) -> Figure:
+    """Axes of all beams: reference dashed, then one colour per labelled state; the
+    obstacles (case ``[[obstacles]]`` tables) in grey."""
     fig = Figure(figsize=(7, 5))
     ax = fig.subplots()
     for k, pts in enumerate(reference):
@@ -32,6 +64,12 @@ def plot_shapes(shapes: list[tuple[str, list[np.ndarray]]], reference: list[np.n
         colour = cmap(i / max(len(shapes) - 1, 1))
         for k, pts in enumerate(beams):
             ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.5, label=label if k == 0 else None)
+    if obstacles:
+        lo, hi = _view(reference + [p for _, beams in shapes for p in beams], obstacles)
+        pad = 0.05 * max(hi - lo)
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        draw_obstacles(ax, obstacles, lo, hi)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -84,13 +122,13 @@ def plot_energies(history: dict[str, np.ndarray], path: Path | None = None,
 
 
 def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[float],
-                   path: Path | None = None, title: str = "") -> Figure:
-    """A grid of snapshots of all beams' axes (paper Fig. 6); ``radii`` pad the view."""
+                   path: Path | None = None, title: str = "", obstacles=()) -> Figure:
+    """A grid of snapshots of all beams' axes (paper Fig. 6); ``radii`` pad the view;
+    the obstacles in grey."""
     n = len(frames)
     cols = min(n, 3)
     rows = int(np.ceil(n / cols))
-    allpts = np.concatenate([p for _, beams in frames for p in beams])
-    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    lo, hi = _view([p for _, beams in frames for p in beams], obstacles)
     pad = 0.05 * max(hi - lo) + max(radii)
     fig = Figure(figsize=(4 * cols, 2.6 * rows))
     axes = fig.subplots(rows, cols, squeeze=False)
@@ -100,6 +138,7 @@ def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[flo
                     color=colormaps["tab10"](k))
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        draw_obstacles(ax, obstacles, lo, hi)
         ax.set_aspect("equal")
         ax.set_title(f"t = {t:.3f} s", fontsize=9)
         ax.tick_params(labelsize=7)
@@ -111,8 +150,8 @@ def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[flo
 
 
 def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str = "",
-            fps: int = 20) -> None:
-    """GIF of the beams' axes over time.
+            fps: int = 20, obstacles=()) -> None:
+    """GIF of the beams' axes over time (the obstacles drawn once, in the background).
 
     matplotlib draws the axes, ticks and title once; every frame is that background with
     the beams drawn on it by Pillow, through the axes' data-to-pixel transform. Redrawing
@@ -122,8 +161,7 @@ def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image, ImageDraw, ImageFont
 
-    allpts = np.concatenate([p for _, beams in frames for p in beams])
-    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    lo, hi = _view([p for _, beams in frames for p in beams], obstacles)
     pad = 0.05 * max(hi - lo)
     dpi = 80
     fig = Figure(figsize=(6, 4), dpi=dpi)
@@ -131,6 +169,7 @@ def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str
     ax = fig.subplots()
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    draw_obstacles(ax, obstacles, lo, hi)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=9)
     canvas.draw()

@@ -17,7 +17,7 @@ import numpy as np
 from beamcontact.build.model import Discretization, point_sampler, polyline_matrix
 from beamcontact.io.case import Case, at_fraction
 from beamcontact.io.results import HistoryWriter, StateWriter, read_history
-from beamcontact.io.vtk import VtkSeries
+from beamcontact.io.vtk import VtkSeries, write_obstacles
 
 
 class OutputPoints:
@@ -67,6 +67,10 @@ class _Files:
                              [b.offset for b in record.disc.beams],
                              [b.n_cp for b in record.disc.beams],
                              None if resume is None else resume[1])
+        if record.case.obstacles:
+            axes = np.concatenate(record.axes(record.x_ref))
+            write_obstacles(out_dir / "obstacles.vtu", record.case.obstacles,
+                            axes.min(axis=0), axes.max(axis=0))
 
     def close(self) -> None:
         self.history.close()
@@ -186,8 +190,9 @@ class RunRecord:
         n = len(self.snapshots)
         picks = np.unique(np.linspace(0, n - 1, min(n, 9)).astype(int))
         shapes = [(self.snapshots[i].parameter, self.axes(self.snapshots[i].x)) for i in picks]
+        walls = self.case.obstacles
         plot_shapes([(f"{self.abscissa} {p:.3g}", a) for p, a in shapes],
-                    self.axes(self.x_ref), plots / "shapes.png", title)
+                    self.axes(self.x_ref), plots / "shapes.png", title, walls)
         history = self.history()
         if self.points.names:
             plot_point_histories(history, self.abscissa, self.points.names,
@@ -195,8 +200,8 @@ class RunRecord:
         if self.abscissa != "t":
             return
         plot_snapshots(shapes, [b.section.half_depth for b in self.disc.beams],
-                       plots / "snapshots.png", title)
+                       plots / "snapshots.png", title, walls)
         plot_energies(history, plots / "energies.png", title)
         frames = [(s.parameter, self.axes(s.x)) for s in self.snapshots[::int(np.ceil(n / 300))]]
         if len(frames) > 1:
-            animate(frames, self.out_dir / "animation.gif", title)
+            animate(frames, self.out_dir / "animation.gif", title, obstacles=walls)

@@ -18,7 +18,7 @@ import numpy as np
 
 from beamcontact import __version__, require_x64
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
-from beamcontact.build.contact import build_contact
+from beamcontact.build.contact import build_contact, obstacle_names
 from beamcontact.build.model import (
     Discretization,
     build_model,
@@ -26,7 +26,7 @@ from beamcontact.build.model import (
     uniform_velocities,
 )
 from beamcontact.contact.laws import CoarseGrained
-from beamcontact.contact.overlap import describe, initial_overlaps
+from beamcontact.contact.overlap import describe, initial_overlaps, obstacle_overlaps
 from beamcontact.contact.problem import freeze
 from beamcontact.contact.resolution import contact_resolution, resolution_warning
 from beamcontact.dynamics.control import EnergyAccount, StepControl, total_energy
@@ -156,14 +156,22 @@ def _check_initial_overlap(case: Case, model: Model, contact) -> list[str]:
     and the place); return a warning for a shallow overlap."""
     if contact is None:
         return []
-    findings = initial_overlaps(np.asarray(model.x_ref), contact.elements,
-                                [b.name for b in case.beams])
-    if not findings:
-        return []
+    names = [b.name for b in case.beams]
+    findings = initial_overlaps(np.asarray(model.x_ref), contact.elements, names)
     r_min = float(np.min(np.asarray(contact.elements.radius)))
-    if findings[0].gap < -OVERLAP_ERROR * r_min:
-        raise CaseError(f"{describe(findings)}; move the beams apart")
-    return [describe(findings)]
+    warnings = []
+    if findings:
+        if findings[0].gap < -OVERLAP_ERROR * r_min:
+            raise CaseError(f"{describe(findings)}; move the beams apart")
+        warnings.append(describe(findings))
+    if contact.obstacles is not None:
+        walls = obstacle_overlaps(np.asarray(model.x_ref), contact.elements,
+                                  contact.obstacles, names, obstacle_names(case))
+        if walls and walls[0][0] < -OVERLAP_ERROR * r_min:
+            more = f" (and {len(walls) - 1} more)" if len(walls) > 1 else ""
+            raise CaseError(f"{walls[0][1]}{more}; move the beam out of the obstacle")
+        warnings += [message for _, message in walls]
+    return warnings
 
 
 def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart,

@@ -25,6 +25,7 @@ from beamcontact.contact.blocks import (
     contact_energy,
     fold_block_forces,
 )
+from beamcontact.contact.obstacles import obstacle_energy, obstacle_forces
 from beamcontact.solvers import linear
 
 
@@ -126,10 +127,20 @@ def contact_residual_tangent(x, contact: FrozenContact, n_dof: int, sparse: bool
     host solve drops), appended as triplets."""
     if sparse:
         conn, f, k = block_forces(x, contact.elements, contact.blocks)
-        return _scatter(jnp.zeros(n_dof, x.dtype), linear.zeros(n_dof, True),
+        r, K = _scatter(jnp.zeros(n_dof, x.dtype), linear.zeros(n_dof, True),
                         element_dofs(conn), f, k)
-    zero = (jnp.zeros(n_dof, x.dtype), linear.zeros(n_dof, False))
-    return fold_block_forces(x, contact.elements, contact.blocks, _scatter_blocks, zero)
+    else:
+        zero = (jnp.zeros(n_dof, x.dtype), linear.zeros(n_dof, False))
+        r, K = fold_block_forces(x, contact.elements, contact.blocks, _scatter_blocks, zero)
+    if contact.obstacles is not None:
+        r, K = _scatter(r, K, *_element_obstacle_forces(x, contact))
+    return r, K
+
+
+def _element_obstacle_forces(x, contact: FrozenContact):
+    """(dofs, gradient, Hessian) of every element's energy against the obstacles."""
+    conn, f, k = obstacle_forces(x, contact.elements, contact.obstacles, contact.blocks.law)
+    return element_dofs(conn), f, k
 
 
 def _scatter_blocks(carry, conn, f, k):
@@ -141,7 +152,11 @@ def contact_energy_of(u, model: Model, contact: FrozenContact | None):
     """Contact energy of the frozen blocks at displacement u (0 without contact)."""
     if contact is None:
         return jnp.asarray(0.0)
-    return contact_energy(model.x_ref + u.reshape(-1, 2), contact.elements, contact.blocks)
+    x = model.x_ref + u.reshape(-1, 2)
+    e = contact_energy(x, contact.elements, contact.blocks)
+    if contact.obstacles is not None:
+        e = e + obstacle_energy(x, contact.elements, contact.obstacles, contact.blocks.law)
+    return e
 
 
 def apply_supports(r: jax.Array, K, free: jax.Array):

@@ -32,8 +32,12 @@ def static_mechanisms(case, disc) -> list[str]:
 
 
 def _contact_partners(case) -> set[str]:
-    """Names of the beams that can be in contact with another beam."""
-    if case.contact.model == "none" or len(case.beams) < 2:
+    """Names of the beams that can be in contact with another beam or an obstacle."""
+    if case.contact.model == "none":
+        return set()
+    if case.obstacles:
+        return {b.name for b in case.beams}
+    if len(case.beams) < 2:
         return set()
     if case.contact.pairs is None:
         return {b.name for b in case.beams}

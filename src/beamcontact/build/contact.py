@@ -1,11 +1,31 @@
 """From a validated case to its contact problem: the law (``Contact.law``), the contact
 points of every element, the beam pairs that may touch (and each beam itself, under
-self-contact)."""
+self-contact), and the rigid obstacles."""
 
 import numpy as np
 
+from beamcontact.contact.obstacles import Obstacles, obstacles_from
 from beamcontact.contact.points import contact_elements, self_exclusion
 from beamcontact.contact.problem import ContactProblem
+
+
+def build_obstacles(case) -> Obstacles | None:
+    """The case's ``[[obstacles]]`` (None when there are none), walls first, then circles,
+    each group in case order (:func:`obstacle_names` gives the same order)."""
+    if not case.obstacles:
+        return None
+    beta = [1.0 if o.density is None else o.density for o in case.obstacles]
+    walls = [(o.wall.point, o.wall.normal, b) for o, b in zip(case.obstacles, beta,
+                                                              strict=True) if o.wall]
+    circles = [(o.circle.center, o.circle.radius, b) for o, b in zip(case.obstacles, beta,
+                                                                    strict=True) if o.circle]
+    return obstacles_from(walls, circles)
+
+
+def obstacle_names(case) -> list[str]:
+    """Obstacle names in the order of :func:`build_obstacles`."""
+    return ([o.name for o in case.obstacles if o.wall]
+            + [o.name for o in case.obstacles if o.circle])
 
 
 def build_contact(case, disc) -> ContactProblem | None:
@@ -13,7 +33,8 @@ def build_contact(case, disc) -> ContactProblem | None:
     c = case.contact
     radii = [b.section.half_depth for b in disc.beams]
     law = c.law(radii)
-    if law is None or (len(disc.beams) < 2 and not c.self_contact):
+    obstacles = build_obstacles(case)
+    if law is None or (len(disc.beams) < 2 and not c.self_contact and obstacles is None):
         return None
     betas = c.densities if len(c.densities) == len(disc.beams) else [c.densities[0]] * len(
         disc.beams)
@@ -29,4 +50,4 @@ def build_contact(case, disc) -> ContactProblem | None:
         local[e] = n_el[b]
         n_el[b] += 1
     return ContactProblem(law, ce, float(law.search_reach(max(radii))),
-                          c.max_penetration_or(radii), beam_of, local)
+                          c.max_penetration_or(radii), beam_of, local, obstacles)

@@ -1,1 +1,2 @@
-"""Beam-to-beam contact (paper Sec. 2): integration points, broad phase, pair laws."""
+"""Beam-to-beam contact (paper Sec. 2): integration points, broad phase, pair laws, and
+rigid obstacles."""

@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from beamcontact.contact.laws import ContactLaw
+from beamcontact.contact.obstacles import Obstacles
 from beamcontact.contact.points import ContactElements
 
 
@@ -41,10 +42,12 @@ class ContactSet:
 @dataclass(frozen=True)
 class FrozenContact:
     """What the assembly needs of contact in one step: the contact points of every
-    element and the frozen set of candidate blocks (with its law). No contact is None."""
+    element, the frozen set of candidate blocks (with its law) and the rigid obstacles
+    (None: none; :mod:`beamcontact.contact.obstacles`). No contact is None."""
 
     elements: ContactElements
     blocks: ContactSet
+    obstacles: Obstacles | None = None
 
 
 def _pair_law(law: ContactLaw):

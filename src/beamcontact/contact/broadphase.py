@@ -118,15 +118,21 @@ def candidate_pairs(x, ce: ContactElements, margin, capacity: SearchCapacity):
     hit = (slot < E) & (keys[inside] == around[..., None]) & (j > i)
     hit &= jnp.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=-1)
     hit &= ce.may_touch(jnp.broadcast_to(i, j.shape), j)
-    load = jnp.max(jnp.searchsorted(keys, keys, side="right", method="sort")
-                   - jnp.searchsorted(keys, keys, side="left", method="sort"))
+    # each box's own cell (neighbour 4, offset (0, 0)) starts at first[:, 4]
+    load = jnp.max(jnp.searchsorted(keys, key, side="right", method="sort") - first[:, 4])
     count = jnp.sum(hit)
     (idx,) = jnp.nonzero(hit.ravel(), size=capacity.blocks, fill_value=0)
     first = jnp.broadcast_to(i, j.shape).ravel()[idx]
     found = jnp.where(jnp.arange(capacity.blocks) < count,
-                      first * (E + 1) + j.ravel()[idx], E * (E + 1) + E)
+                      pair_key(first, j.ravel()[idx], E), pair_key(E, E, E))
     found = jnp.sort(found)
     return jnp.stack([found // (E + 1), found % (E + 1)], axis=1), count, load
+
+
+def pair_key(e1, e2, n_elements: int):
+    """e1 (E + 1) + e2: one integer per element pair (the sentinel E included) that
+    orders pairs by (e1, e2)."""
+    return e1 * (n_elements + 1) + e2
 
 
 _candidates = jax.jit(candidate_pairs, static_argnames=("capacity",))

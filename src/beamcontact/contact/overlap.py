@@ -162,3 +162,29 @@ def _finding(hits, sel, points, position, first, beam_of, names, tol) -> Overlap
                    fractions=(float(position[e1, s1]), float(position[e2, s2])),
                    elements=(int(e1 - first[b1]), int(e2 - first[b2])),
                    point_pairs=int(hits["count"][sel].sum()))
+
+
+def obstacle_overlaps(x, ce, obstacles, beam_names: Sequence[str],
+                      obstacle_names: Sequence[str]) -> list[tuple[float, str]]:
+    """Every beam whose contact points penetrate an obstacle at control points x: (the
+    smallest gap q = s - R, a message naming both and the place), deepest first
+    (:mod:`beamcontact.contact.obstacles`)."""
+    from beamcontact.contact.obstacles import obstacle_gaps
+
+    x = np.asarray(x, dtype=float)
+    q = np.asarray(obstacle_gaps(x, ce, obstacles))  # (E, S, O)
+    points = np.einsum("esk,ekd->esd", np.asarray(ce.R, dtype=float), x[np.asarray(ce.conn)])
+    beam_of = np.asarray(ce.beam)
+    position = _arc_fractions(np.asarray(ce.w, dtype=float), beam_of)
+    found = []
+    for b, name in enumerate(beam_names):
+        for o, obstacle in enumerate(obstacle_names):
+            qb = np.where((beam_of == b)[:, None], q[:, :, o], np.inf)
+            e, s = np.unravel_index(np.argmin(qb), qb.shape)
+            if qb[e, s] < 0.0:
+                p = points[e, s]
+                found.append((float(qb[e, s]),
+                              f"beam {name!r} penetrates obstacle {obstacle!r} in the initial "
+                              f"configuration: gap {qb[e, s]:.4g} m at ({p[0]:.4g}, "
+                              f"{p[1]:.4g}) (at {position[e, s]:.3g} of its length)"))
+    return sorted(found)

@@ -30,8 +30,10 @@ from beamcontact.contact.broadphase import (
     SearchCapacity,
     box_gap_lower_bound,
     candidate_pairs,
+    pair_key,
 )
 from beamcontact.contact.laws import ContactLaw
+from beamcontact.contact.obstacles import Obstacles, obstacle_gaps
 from beamcontact.contact.points import ContactElements
 from beamcontact.contact.select import closest_pair_weights
 
@@ -46,6 +48,7 @@ class ContactSearch:
     elements: ContactElements
     law: ContactLaw
     reach: float
+    obstacles: Obstacles | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,6 +63,8 @@ class ContactProblem:
         max_penetration: a step whose smallest gap is below -max_penetration is redone
             with a smaller time step.
         beam_of, local_element: numbering used by the closest-pair selection.
+        obstacles: the rigid obstacles every beam touches (None: none;
+            :mod:`beamcontact.contact.obstacles`).
     """
 
     law: ContactLaw
@@ -68,6 +73,7 @@ class ContactProblem:
     max_penetration: float
     beam_of: np.ndarray
     local_element: np.ndarray
+    obstacles: Obstacles | None = None
 
     @property
     def interaction(self) -> float:
@@ -78,7 +84,7 @@ class ContactProblem:
     @property
     def search(self) -> ContactSearch:
         """The device-side data of the search (:class:`ContactSearch`)."""
-        return ContactSearch(self.elements, self.law, self.reach)
+        return ContactSearch(self.elements, self.law, self.reach, self.obstacles)
 
     def frozen_set(self, x_pred, motion: float,
                    capacity: SearchCapacity) -> tuple[ContactSet, int, int]:
@@ -139,7 +145,14 @@ class ContactProblem:
         missing, count, load, gap = _after_step(x, self.elements, cs.pairs,
                                                 jnp.asarray(self.reach),
                                                 jnp.asarray(self.interaction), capacity)
-        return bool(missing) or not capacity.fits(int(count), int(load)), float(gap)
+        missing = bool(missing) or not capacity.fits(int(count), int(load))
+        return missing, min(float(gap), self._obstacle_gap(x))
+
+    def _obstacle_gap(self, x) -> float:
+        """Smallest gap of a contact point to an obstacle (inf without obstacles)."""
+        if self.obstacles is None:
+            return np.inf
+        return float(_smallest_obstacle_gap(x, self.elements, self.obstacles))
 
     def min_gap(self, x, cs: ContactSet) -> float:
         """Smallest surface gap at x (see :func:`missed_blocks`), the capacities grown
@@ -150,7 +163,7 @@ class ContactProblem:
                                               jnp.asarray(self.reach),
                                               jnp.asarray(self.interaction), capacity)
             if capacity.fits(int(count), int(load)):
-                return float(gap)
+                return min(float(gap), self._obstacle_gap(x))
             capacity = self.grown(capacity, int(count), int(load))
 
 
@@ -186,7 +199,7 @@ def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: SearchCapac
     """
     pairs, count, load = candidate_pairs(x, ce, reach, capacity)
     E = ce.n_elements
-    key = lambda p: p[:, 0] * (E + 1) + p[:, 1]  # noqa: E731
+    key = lambda p: pair_key(p[:, 0], p[:, 1], E)  # noqa: E731
     d = block_distances(x, ce, pairs)
     near = jnp.min(d, axis=(1, 2)) < interaction
     frozen = jnp.sort(key(frozen_pairs))  # membership by binary search: linear, not C^2
@@ -201,6 +214,11 @@ def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: SearchCapac
 _after_step = jax.jit(missed_blocks, static_argnames=("capacity",))
 
 
+@jax.jit
+def _smallest_obstacle_gap(x, ce, obstacles):
+    return jnp.min(obstacle_gaps(x, ce, obstacles))
+
+
 def freeze(contact: ContactProblem | None, cs: ContactSet | None) -> FrozenContact | None:
     """The contact of one step for the assembly (None without contact)."""
-    return None if contact is None else FrozenContact(contact.elements, cs)
+    return None if contact is None else FrozenContact(contact.elements, cs, contact.obstacles)

@@ -20,6 +20,7 @@ from beamcontact.assembly.system import contact_energy_of, energies
 from beamcontact.contact.advance import approach_ratio
 from beamcontact.contact.blocks import ContactSet, FrozenContact
 from beamcontact.contact.broadphase import SearchCapacity
+from beamcontact.contact.obstacles import obstacle_approach_ratio, obstacle_gaps
 from beamcontact.contact.problem import (
     ContactProblem,
     ContactSearch,
@@ -100,7 +101,7 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
                 x_pred, search.elements, search.reach, search.law.interaction_distance(),
                 motion, capacity)
             cs = ContactSet(pairs, None, search.law)
-        contact = FrozenContact(search.elements, cs)
+        contact = FrozenContact(search.elements, cs, search.obstacles)
         h_used = _advanced_step(state, x0, h, search, cs)
     # no fixed floor: at short steps an increment test of a fixed size would accept
     # velocities wrong by gamma utol / (beta h); the residual test governs there, and the
@@ -133,8 +134,7 @@ def _advanced_step(state: DynState, x0, h, search: ContactSearch, cs: ContactSet
     """h, shortened so that the predictor's approach of every candidate point pair stays
     below ADVANCE_FRACTION of its gap plus the law's slack (conservative advancement)."""
     v, a = state.v.reshape(-1, 2), state.a.reshape(-1, 2)
-    ratio = approach_ratio(x0, (h * v, 0.5 * h * h * a), search.elements, cs.pairs,
-                           search.law.advance_slack())
+    ratio = _approach(x0, (h * v, 0.5 * h * h * a), search, cs)
     return h * jnp.minimum(1.0, ADVANCE_FRACTION / jnp.maximum(ratio, 1e-300))
 
 
@@ -152,9 +152,21 @@ def _contact_after_step(new: DynState, model: Model, x0, x_pred, motion,
                                         search.law.interaction_distance(), capacity)
     deviation = jnp.max(jnp.linalg.norm(x_new - x_pred, axis=1))
     missing = missing | (deviation > motion + 1e-6 * reach)
+    if search.obstacles is not None:
+        gap = jnp.minimum(gap, jnp.min(obstacle_gaps(x_new, ce, search.obstacles)))
     return missing, {"count_after": count, "load_after": load, "min_gap": gap,
-                     "approach": approach_ratio(x0, (x_new - x0,), ce, cs.pairs,
-                                                search.law.advance_slack())}
+                     "approach": _approach(x0, (x_new - x0,), search, cs)}
+
+
+def _approach(x0, displacements, search: ContactSearch, cs: ContactSet):
+    """The largest approach ratio of the candidate point pairs and of the points against
+    the obstacles (:mod:`~beamcontact.contact.advance`)."""
+    slack = search.law.advance_slack()
+    ratio = approach_ratio(x0, displacements, search.elements, cs.pairs, slack)
+    if search.obstacles is None:
+        return ratio
+    return jnp.maximum(ratio, obstacle_approach_ratio(x0, displacements, search.elements,
+                                                      search.obstacles, slack))
 
 
 def _energy_floor(state: DynState, new: DynState, model: Model, e_kin_new, utol_h, alpha,

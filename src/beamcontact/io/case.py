@@ -20,17 +20,20 @@ from beamcontact.io.case_tables import (  # noqa: F401
     Analysis,
     Arc,
     Beam,
+    Circle,
     CircleSection,
     Contact,
     Line,
     Load,
     Material,
     Nurbs,
+    Obstacle,
     Output,
     OutputPoint,
     RectangleSection,
     Solver,
     Support,
+    Wall,
     _Strict,
     at_fraction,
 )
@@ -48,6 +51,7 @@ class Case(_Strict):
     beams: Annotated[list[Beam], Field(min_length=1)]
     loads: list[Load] = []
     contact: Contact = Contact()
+    obstacles: list[Obstacle] = []
     solver: Solver = Solver()
     output: Output = Output()
 
@@ -173,11 +177,29 @@ def _check_references(case: Case) -> None:
         if case.contact.cutoff <= 2 * min(radii):
             raise CaseError(f"contact.cutoff: must exceed the sum of two radii "
                             f"({2 * min(radii)}), got {case.contact.cutoff}")
+    _check_obstacles(case)
     for i, b in enumerate(case.beams):
         r = b.section.radius if b.section.shape == "circle" else 0.5 * b.section.height
         if b.arc is not None and r >= b.arc.radius:
             raise CaseError(f"beams[{i}] ({b.name}).section: half-depth {r} must be smaller "
                             f"than the arc radius {b.arc.radius}")
+
+
+def _check_obstacles(case: Case) -> None:
+    names = [o.name for o in case.obstacles]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise CaseError(f"obstacles[{i}].name: duplicate obstacle name {name!r}")
+    if case.obstacles and case.contact.model == "none":
+        raise CaseError("obstacles: need a contact law; set contact.model = \"ipip\" or "
+                        "\"cg\"")
+    for i, o in enumerate(case.obstacles):
+        if o.density is not None and case.contact.model != "cg":
+            raise CaseError(f"obstacles[{i}] ({o.name}).density: applies to model \"cg\" "
+                            f"only (model is \"{case.contact.model}\")")
+    if case.obstacles and case.contact.model == "cg" and case.contact.exponent <= 4.5:
+        raise CaseError(f"contact.exponent: the coarse-grained law against an obstacle "
+                        f"needs m > 4.5 (section to half-space), got {case.contact.exponent}")
 
 
 def read_case_file(path: str | Path) -> tuple[Case, str]:

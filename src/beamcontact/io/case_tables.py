@@ -1,8 +1,8 @@
 """The tables of a case file (DESIGN.md Sec. 4) as pydantic v2 models: ``[analysis]``,
 ``[[beams]]`` (with ``line`` / ``arc`` / ``nurbs``, ``section``, ``material``,
-``supports``), ``[[loads]]``, ``[contact]``, ``[solver]``, ``[output]``. Each validates
-its own values; :class:`beamcontact.io.case.Case` puts them together and checks what
-spans several tables. SI units throughout.
+``supports``), ``[[loads]]``, ``[contact]``, ``[[obstacles]]``, ``[solver]``,
+``[output]``. Each validates its own values; :class:`beamcontact.io.case.Case` puts
+them together and checks what spans several tables. SI units throughout.
 """
 
 import math
@@ -296,6 +296,47 @@ class Contact(_Strict):
     def max_penetration_or(self, radii: list[float]) -> float:
         """max_penetration, or its default: the smallest half-depth."""
         return self.max_penetration if self.max_penetration is not None else min(radii)
+
+
+class Wall(_Strict):
+    """A rigid half-plane: ``point`` on its surface [m] and ``normal`` pointing out of the
+    solid (any nonzero length); the half-plane behind the normal is solid."""
+
+    point: Vec2
+    normal: Vec2
+
+    @model_validator(mode="after")
+    def _normal(self):
+        if math.hypot(*self.normal) == 0.0:
+            raise ValueError("normal must be a nonzero vector")
+        return self
+
+
+class Circle(_Strict):
+    """A rigid disk: ``center`` [m] and ``radius`` [m]."""
+
+    center: Vec2
+    radius: Positive
+
+
+class Obstacle(_Strict):
+    """A rigid obstacle every beam touches with the contact law of ``[contact]``: give
+    exactly one of ``wall`` or ``circle``. ``density``: the obstacle's particle density
+    beta_o of the coarse-grained law (default 1; model "cg" only). See docs/theory.md,
+    "Rigid obstacles"."""
+
+    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$")]
+    wall: Wall | None = None
+    circle: Circle | None = None
+    density: Positive | None = None
+
+    @model_validator(mode="after")
+    def _one_shape(self):
+        given = [k for k in ("wall", "circle") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one shape: wall or circle (got "
+                             f"{', '.join(given) or 'none'})")
+        return self
 
 
 class Solver(_Strict):

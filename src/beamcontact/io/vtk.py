@@ -1,7 +1,9 @@
-"""ParaView output: one VTU per snapshot (beams as polylines) and a PVD time series.
+"""ParaView output: one VTU per snapshot (beams as polylines) and a PVD time series;
+the rigid obstacles, which do not move, once in ``obstacles.vtu``.
 
 Point data: ``displacement`` (3-vector, z = 0), ``radius`` (section half-depth, for the
-Tube filter); cell data: ``beam`` (index of the beam in the case).
+Tube filter); cell data: ``beam`` (index of the beam in the case); in obstacles.vtu,
+``obstacle`` (index of the obstacle in the case).
 """
 
 import re
@@ -63,3 +65,22 @@ class VtkSeries:
                   for t, f in self._entries]
         lines += ["  </Collection>", "</VTKFile>", ""]
         (self.out_dir / "beams.pvd").write_text("\n".join(lines), encoding="utf-8")
+
+
+def write_obstacles(path: Path, obstacles, lo, hi) -> None:
+    """The obstacles as polylines (:func:`~beamcontact.obstacle_outlines.obstacle_outlines`
+    for the box [lo, hi] of the beams): walls as segments, circles as closed polygons."""
+    from beamcontact.obstacle_outlines import obstacle_outlines
+
+    pts, cells, ids, start = [], [], [], 0
+    for k, (_, line) in enumerate(obstacle_outlines(obstacles, lo, hi)):
+        n = len(line)
+        pts.append(line)
+        cells.append(np.column_stack([np.arange(start, start + n - 1),
+                                      np.arange(start + 1, start + n)]))
+        ids.append(np.full(n - 1, k))
+        start += n
+    xyz = np.concatenate(pts)
+    meshio.write(path, meshio.Mesh(np.column_stack([xyz, np.zeros(len(xyz))]),
+                                   [("line", np.concatenate(cells))],
+                                   cell_data={"obstacle": [np.concatenate(ids)]}))

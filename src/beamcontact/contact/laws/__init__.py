@@ -16,6 +16,9 @@ new penalty value reuses the compiled code). Every law provides
 * ``advance_slack()``: the distance added to a gap in the conservative advancement
   (:mod:`beamcontact.contact.advance`), i.e. how far into a gap the law lets a pair go
   before its force stops it;
+* ``obstacle_amplitude(R, beta12)`` and ``obstacle_energy(q, R, amplitude, w)``: the
+  energy of one contact point (radius R, arc-length weight w) at gap q from a rigid
+  obstacle (:mod:`beamcontact.contact.obstacles`);
 * ``closest_pairs`` (class attribute): True when the law acts only on the closest point
   pairs (IPIP, chosen on the host each step by the law's ``pairing`` rule, "zones" or
   "points", :mod:`beamcontact.contact.select`), False when it is integrated over all
@@ -50,6 +53,10 @@ class ContactLaw(Protocol):
     def amplitude(self, R1, R2, beta12): ...
 
     def pair_energy(self, d, R12, amplitude): ...
+
+    def obstacle_amplitude(self, R, beta12): ...
+
+    def obstacle_energy(self, q, R, amplitude, w): ...
 
     def interaction_distance(self) -> float: ...
 

@@ -16,6 +16,13 @@ def cg_constant(m, R1, R2):
     return jnp.exp(log_c) * jnp.sqrt(R1 * R2 / (R1 + R2))
 
 
+def cg_wall_constant(m, R):
+    """C_w(m, R) = (2 pi)^(3/2) sqrt(R) Gamma(m - 9/2) / Gamma(m - 1) of the
+    section-to-half-space potential (:mod:`beamcontact.contact.obstacles`)."""
+    log_c = 1.5 * jnp.log(2.0 * jnp.pi) + gammaln(m - 4.5) - gammaln(m - 1.0)
+    return jnp.exp(log_c) * jnp.sqrt(R)
+
+
 def taylor_below(f, q, q_reg):
     """f(q) for q > q_reg, continued by its second-order Taylor polynomial at q_reg below
     (f', f'' by AD): a pair energy singular at q = 0 becomes one whose force grows
@@ -29,7 +36,11 @@ def taylor_below(f, q, q_reg):
 
 def cg_potential(q, amplitude, m, q_reg):
     """amplitude * q^(7/2-m) for q >= q_reg, its quadratic Taylor continuation below."""
-    n = m - 3.5
+    return power_repulsion(q, amplitude, m - 3.5, q_reg)
+
+
+def power_repulsion(q, amplitude, n, q_reg):
+    """amplitude * q^(-n) for q >= q_reg, its quadratic Taylor continuation below."""
     q_safe = jnp.where(q > q_reg, q, q_reg)  # no negative powers of small q, even unused
     # exp(-n log q) rather than q ** -n: the derivatives of exp and log reuse the primal
     # values, so phi, phi' and phi'' cost one exp and one log per pair (a power's
@@ -86,6 +97,18 @@ class CoarseGrained:
         """Half the cutoff: boxes closer than the cutoff are candidates."""
         del r_max
         return 0.5 * self.cutoff
+
+    def obstacle_amplitude(self, R, beta12):
+        """k beta beta_o C_w(m, R) of the section-to-half-space potential
+        (:mod:`beamcontact.contact.obstacles`)."""
+        return self.k * beta12 * cg_wall_constant(self.exponent, R)
+
+    def obstacle_energy(self, q, R, amplitude, w):
+        """w Phi_w(q): the section-to-half-space potential q^(9/2 - m) of one point with
+        arc-length weight w, regularised below q_reg like eq. (9); nothing beyond the gap
+        cutoff - 2 R."""
+        phi = power_repulsion(q, amplitude, self.exponent - 4.5, self.q_reg)
+        return jnp.where(q < self.cutoff - 2.0 * R, w * phi, 0.0)
 
     def advance_slack(self):
         """q_reg: below it the force is continued linearly, so a pair can be pushed to

@@ -41,6 +41,17 @@ class Penalty:
         """Penalty energy eps q^2 / 2 of one closest point pair for q < 0 (eq. 3)."""
         return 0.5 * amplitude * jnp.minimum(d - R12, 0.0) ** 2
 
+    def obstacle_amplitude(self, R, beta12):
+        """The penalty (eq. 3), as for a beam pair."""
+        del beta12
+        return jnp.full_like(R, self.penalty)
+
+    def obstacle_energy(self, q, R, amplitude, w):
+        """eps q^2 / 2 for q < 0 of one point against a rigid obstacle, weight 1 (what a
+        point of the "points" pairing carries in total, 1/2 from each side)."""
+        del R, w
+        return 0.5 * amplitude * jnp.minimum(q, 0.0) ** 2
+
     def interaction_distance(self) -> float:
         """No cutoff: every candidate block is kept; the selection picks the pairs."""
         return math.inf
