@@ -70,7 +70,8 @@ def plot_shapes(shapes: list[tuple[str, list[np.ndarray]]], reference: list[np.n
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         draw_obstacles(ax, obstacles, lo, hi)
-    ax.set_aspect("equal", adjustable="datalim")
+    # with the view fixed (obstacles) the box adapts to the aspect, else the data limits
+    ax.set_aspect("equal", adjustable="box" if obstacles else "datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title(title)
