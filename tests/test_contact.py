@@ -16,7 +16,7 @@ from beamcontact.contact.blocks import (
     block_gaps,
     contact_energy,
 )
-from beamcontact.contact.broadphase import candidate_pairs, element_boxes
+from beamcontact.contact.broadphase import element_boxes
 from beamcontact.contact.laws import cg_constant, cg_potential
 from beamcontact.contact.select import closest_pair_weights
 from beamcontact.dynamics.driver import solve_dynamic
@@ -192,8 +192,13 @@ def _brute_force_pairs(x, ce, margin):
 def test_broad_phase_equals_brute_force(seed, n_beams, spread, self_contact):
     """The grid search finds exactly the pairs of the all-pairs box test, in the same
     (e1, e2) order, on random configurations (dense ones overflow the first cell
-    capacity and grow it)."""
-    from beamcontact.contact.broadphase import SearchCapacity, all_candidates
+    capacity and grow it); so does the all-pairs path of small models."""
+    from beamcontact.contact.broadphase import (
+        SearchCapacity,
+        all_candidates,
+        all_pair_candidates,
+        grid_candidates,
+    )
 
     rng = np.random.default_rng(seed)
     case = parse_case({"analysis": {"kind": "static"},
@@ -207,8 +212,14 @@ def test_broad_phase_equals_brute_force(seed, n_beams, spread, self_contact):
     brute = _brute_force_pairs(x, ce, margin)
     assert len(brute) > 0
     assert [tuple(p) for p in all_candidates(x, ce, margin)] == brute
+    roomy = SearchCapacity(len(brute) + 5, 512)
+    for search in (grid_candidates, all_pair_candidates):
+        pairs, count, _ = jax.jit(search, static_argnums=3)(jnp.asarray(x), ce, margin, roomy)
+        assert int(count) == len(brute)
+        assert [tuple(p) for p in np.asarray(pairs)[: len(brute)]] == brute
+        assert np.all(np.asarray(pairs)[len(brute):] == ce.n_elements)
     # with capacities too small the count and the load say so
-    pairs, count, load = jax.jit(candidate_pairs, static_argnums=3)(
+    pairs, count, load = jax.jit(grid_candidates, static_argnums=3)(
         jnp.asarray(x), ce, margin, SearchCapacity(4, 1))
     assert int(count) > 4 or int(load) > 1
     # every pair of contact points closer than 2 margin that may interact lies in a
