@@ -15,17 +15,16 @@ def build_obstacles(case) -> Obstacles | None:
     if not case.obstacles:
         return None
     beta = [1.0 if o.density is None else o.density for o in case.obstacles]
-    walls = [(o.wall.point, o.wall.normal, b) for o, b in zip(case.obstacles, beta,
-                                                              strict=True) if o.wall]
-    circles = [(o.circle.center, o.circle.radius, b) for o, b in zip(case.obstacles, beta,
-                                                                    strict=True) if o.circle]
+    both = list(zip(case.obstacles, beta, strict=True))
+    walls = [(o.wall.point, o.wall.normal, b) for o, b in both if o.wall is not None]
+    circles = [(o.circle.center, o.circle.radius, b) for o, b in both if o.circle is not None]
     return obstacles_from(walls, circles)
 
 
 def obstacle_names(case) -> list[str]:
     """Obstacle names in the order of :func:`build_obstacles`."""
-    return ([o.name for o in case.obstacles if o.wall]
-            + [o.name for o in case.obstacles if o.circle])
+    return ([o.name for o in case.obstacles if o.wall is not None]
+            + [o.name for o in case.obstacles if o.circle is not None])
 
 
 def build_contact(case, disc) -> ContactProblem | None:

@@ -57,11 +57,6 @@ class Obstacles:
     circle: jax.Array
     beta: jax.Array
 
-    @property
-    def count(self) -> int:
-        """Number of obstacles O."""
-        return self.point.shape[0]
-
 
 def obstacles_from(walls: list[tuple], circles: list[tuple]) -> Obstacles:
     """Obstacles from ``walls`` [(point, normal, beta)] then ``circles`` [(center, radius,
