@@ -18,29 +18,22 @@ import beamcontact
 beamcontact.enable_x64()
 
 import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
 
-from beamcontact.assembly.model import initial_load_state  # noqa: E402
-from beamcontact.build.model import build_model, uniform_velocities  # noqa: E402
 from beamcontact.dynamics.control import StepControl  # noqa: E402
 from beamcontact.dynamics.driver import solve_dynamic  # noqa: E402
-from beamcontact.dynamics.hht import initial_state  # noqa: E402
 from beamcontact.io.case import parse_case  # noqa: E402
-from beamcontact.solvers.newton import NewtonOptions  # noqa: E402
+from beamcontact.setup.start import dynamic_start, prepare  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 def time_case(raw: dict, label: str) -> None:
     case = parse_case(raw)
-    model, disc = build_model(case)
-    an = case.analysis
-    v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
-    state = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model))
-    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, case.solver.utol)
+    start = dynamic_start(prepare(case))
+    model, an = start.prepared.model, case.analysis
     t0 = time.perf_counter()
     # fixed steps: the benchmark times the step, not the controller
-    res = solve_dynamic(model, state, an.t_end, an.alpha, opts, disc.length_scale,
+    res = solve_dynamic(start.engine, start.state, an.t_end, start.prepared.length,
                         StepControl.fixed(an.dt))
     wall = time.perf_counter() - t0
     run = wall - res.compile_time

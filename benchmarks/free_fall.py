@@ -20,19 +20,14 @@ import beamcontact
 beamcontact.enable_x64()
 
 import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from beamcontact.assembly.model import initial_load_state  # noqa: E402
 from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
-from beamcontact.build.contact import build_contact  # noqa: E402
-from beamcontact.build.model import build_model, uniform_velocities  # noqa: E402
 from beamcontact.contact.problem import freeze  # noqa: E402
 from beamcontact.dynamics.driver import solve_dynamic  # noqa: E402
-from beamcontact.dynamics.hht import initial_state  # noqa: E402
 from beamcontact.io.case import parse_case  # noqa: E402
-from beamcontact.runner import step_control  # noqa: E402
-from beamcontact.solvers.newton import NewtonOptions  # noqa: E402
+from beamcontact.setup.start import dynamic_start, prepare  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -50,14 +45,9 @@ def run(model_name: str, t_end: float) -> None:
     raw = tomllib.loads((REPO / f"examples/free_fall/case_{model_name}.toml").read_text())
     raw["analysis"]["t_end"] = t_end
     case = parse_case(raw)
-    model, disc = build_model(case)
-    contact = build_contact(case, disc)
-    an = case.analysis
-    v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
-    cs0, cap = contact.grown_set(model.x_ref, 0.0, case.contact.capacity)
-    state = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model),
-                          freeze(contact, cs0))
-    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, case.solver.utol)
+    start = dynamic_start(prepare(case))
+    model, contact, an = start.prepared.model, start.prepared.contact, case.analysis
+    cap = contact.first_capacity(case.contact.capacity)
     kept = {}
 
     def keep(s):
@@ -65,8 +55,8 @@ def run(model_name: str, t_end: float) -> None:
             kept["impact"] = s.state
 
     t0 = time.perf_counter()
-    res = solve_dynamic(model, state, an.t_end, an.alpha, opts, disc.length_scale,
-                        step_control(case), contact=contact, capacity=cap.blocks, on_step=keep)
+    res = solve_dynamic(start.engine, start.state, an.t_end, start.prepared.length,
+                        start.control, capacity=cap.blocks, on_step=keep)
     wall = time.perf_counter() - t0
     run_time = wall - res.compile_time
     share = float("nan")

@@ -24,9 +24,9 @@ import jax.numpy as jnp  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from beamcontact.assembly.model import initial_load_state  # noqa: E402
-from beamcontact.build.model import build_model  # noqa: E402
 from beamcontact.dynamics.hht import hht_step, initial_state  # noqa: E402
 from beamcontact.io.case import parse_case  # noqa: E402
+from beamcontact.setup.model import build_model  # noqa: E402
 
 
 def main() -> None:

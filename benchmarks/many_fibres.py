@@ -36,39 +36,28 @@ def one(n: int, model: str, settle: float, window: float) -> dict:
     sys.path.insert(0, str(REPO / "examples" / "fibre_pile"))
     from pile import pile_case
 
-    from beamcontact.assembly.model import initial_load_state
-    from beamcontact.build.contact import build_contact
-    from beamcontact.build.model import build_model
     from beamcontact.contact.broadphase import candidate_pairs
-    from beamcontact.contact.problem import freeze
     from beamcontact.dynamics.driver import solve_dynamic
-    from beamcontact.dynamics.hht import initial_state
     from beamcontact.io.case import parse_case
-    from beamcontact.runner import step_control
-    from beamcontact.solvers.newton import NewtonOptions
+    from beamcontact.setup.start import dynamic_start, prepare
 
     case = parse_case(pile_case(n, seed=1, model=model, rows=4, t_end=settle,
                                 container="rods"))
     t0 = time.perf_counter()
-    model_, disc = build_model(case)
-    contact = build_contact(case, disc)
+    prepared = prepare(case)
     setup = time.perf_counter() - t0
-    cs0, cap = contact.grown_set(model_.x_ref, 0.0, case.contact.capacity)
-    state = initial_state(jnp.zeros(model_.n_dof), jnp.zeros(model_.n_dof), model_,
-                          initial_load_state(model_), freeze(contact, cs0))
-    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, case.solver.utol)
-    an = case.analysis
-    control = step_control(case)
-    first = solve_dynamic(model_, state, settle, an.alpha, opts, disc.length_scale, control,
-                          contact=contact, capacity=cap.blocks)
+    start = dynamic_start(prepared)
+    model_, contact, engine = prepared.model, prepared.contact, start.engine
+    _, cap = contact.grown_set(model_.x_ref, 0.0, case.contact.capacity)
+    first = solve_dynamic(engine, start.state, settle, prepared.length, start.control,
+                          capacity=cap.blocks)
     # candidate lists with room for what the window will need
     x = model_.x_ref + first.state.u.reshape(-1, 2)
     _, cap = contact.grown_set(x, 0.0, cap)
     cap = cap._replace(blocks=2 * cap.blocks, per_cell=2 * cap.per_cell)
     t1 = time.perf_counter()
-    second = solve_dynamic(model_, first.state, settle + window, an.alpha, opts,
-                           disc.length_scale, control, dt_start=first.dt_next,
-                           contact=contact, capacity=cap)
+    second = solve_dynamic(engine, first.state, settle + window, prepared.length,
+                           start.control, dt_start=first.dt_next, capacity=cap)
     wall = time.perf_counter() - t1
     x = model_.x_ref + second.state.u.reshape(-1, 2)
     _, count, load = candidate_pairs(jnp.asarray(x), contact.elements,

@@ -33,21 +33,20 @@ from _shared import best_ms  # noqa: E402
 from compare import MODELS, drop_case  # noqa: E402
 
 from beamcontact.assembly.system import residual_tangent_with_contact  # noqa: E402
-from beamcontact.build.contact import build_contact  # noqa: E402
-from beamcontact.build.model import build_model  # noqa: E402
 from beamcontact.contact.advance import approach_ratio  # noqa: E402
 from beamcontact.contact.problem import freeze, missed_blocks  # noqa: E402
+from beamcontact.contact.step_set import step_set  # noqa: E402
 from beamcontact.dynamics.hht import hht_step  # noqa: E402
 from beamcontact.dynamics.step import (  # noqa: E402
-    _closest_points,
     _predicted_x,
     closest_pair_candidates,
     diagnostics,
-    fused_step,
+    fused_attempt,
     positions,
 )
 from beamcontact.io.case import parse_case  # noqa: E402
-from beamcontact.runner import _discretize, _restart_state, run_case  # noqa: E402
+from beamcontact.runner import _restart_state, run_case  # noqa: E402
+from beamcontact.setup.start import prepare  # noqa: E402
 
 
 def main() -> None:
@@ -69,9 +68,8 @@ def main() -> None:
         out = a.out / f"{a.case.stem}_{a.t:g}"
     if not (out / "results.h5").exists():
         run_case(case, case.to_toml(), out)
-    disc = _discretize(case)
-    model, disc = build_model(case, disc)
-    contact = build_contact(case, disc)
+    prepared = prepare(case)
+    model, contact = prepared.model, prepared.contact
     state, _ = _restart_state(case, out, model)
     h, search = np.float64(a.h), contact.search
     cap = contact.first_capacity(case.contact.capacity)
@@ -91,7 +89,7 @@ def main() -> None:
                           best_ms(lambda: contact.closest_pair_set(pairs, q,
                                                                    float(motion))))]
             else:  # "points": chosen inside the fused step (the host rule gives the same set)
-                select = jax.jit(_closest_points, static_argnames=("capacity",))
+                select = jax.jit(step_set, static_argnames=("capacity",))
                 x_pred = _predicted_x(state, model, h)
                 rows.append(("IPIP points selection (part of the fused attempt)", best_ms(
                     lambda: select(x_pred, motion, search, capacity=cap))))
@@ -100,9 +98,9 @@ def main() -> None:
         real = int(np.sum(np.asarray(cs.pairs)[:, 0] < search.elements.n_elements))
         args = (state, model, h, np.float64(0.0), np.float64(1e-9), np.float64(1e-10),
                 np.float64(1e-3), np.float64(1.0), search, cs_host)
-        counts = fused_step(*args, max_iterations=25, capacity=cap)[2]
+        counts = fused_attempt(*args, max_iterations=25, capacity=cap)[2]
         rows.append((f"whole fused attempt ({int(counts[1])} Newton iterations)",
-                     best_ms(lambda: fused_step(*args, max_iterations=25, capacity=cap))))
+                     best_ms(lambda: fused_attempt(*args, max_iterations=25, capacity=cap))))
         fc = freeze(contact, cs)
         newton = jax.jit(hht_step, static_argnames=("max_iterations",))
         rows.append(("HHT Newton solve alone", best_ms(

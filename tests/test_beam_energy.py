@@ -9,7 +9,7 @@ from _builders import beam, static_case
 from beamcontact.assembly.model import initial_load_state
 from beamcontact.assembly.system import energies as _energies
 from beamcontact.assembly.system import potential_residual_tangent as _prt
-from beamcontact.build.model import build_model
+from beamcontact.setup.model import build_model
 
 energies = jax.jit(_energies)
 potential_residual_tangent = jax.jit(_prt)

@@ -17,7 +17,6 @@ import pytest
 from _builders import beam
 from scipy.integrate import quad
 
-from beamcontact.build.model import build_model
 from beamcontact.contact.blocks import ContactSet, contact_energy
 from beamcontact.contact.laws import CoarseGrained, cg_constant
 from beamcontact.contact.points import contact_elements
@@ -29,6 +28,7 @@ from beamcontact.contact.resolution import (
     washboard_variation,
 )
 from beamcontact.io.case import parse_case
+from beamcontact.setup.model import build_model
 
 R, Q, K_M = 0.1, 2.0e-4, 5.0e-25
 D = 2 * R + Q  # centre-line distance

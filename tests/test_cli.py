@@ -211,7 +211,7 @@ def test_compilation_cache_location_and_identical_results(tmp_path, monkeypatch)
         runs.append((out / "history.csv").read_text())
     assert any((tmp_path / "cache").iterdir())  # the compiled step was stored
     # and its traced program (the third run embeds it instead of tracing)
-    assert any((tmp_path / "cache" / "exported").glob("fused_step-*.hlo"))
+    assert any((tmp_path / "cache" / "exported").glob("fused_attempt-*.hlo"))
     assert runs[0] == runs[1] == runs[2]
 
 

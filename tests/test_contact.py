@@ -8,8 +8,6 @@ from _builders import beam
 
 from beamcontact.assembly.model import initial_load_state
 from beamcontact.assembly.system import contact_residual_tangent
-from beamcontact.build.contact import build_contact
-from beamcontact.build.model import build_model, point_sampler, uniform_velocities
 from beamcontact.contact.blocks import (
     FrozenContact,
     arc_length_weights,
@@ -21,8 +19,11 @@ from beamcontact.contact.laws import cg_constant, cg_potential
 from beamcontact.contact.select import closest_pair_weights
 from beamcontact.dynamics.driver import solve_dynamic
 from beamcontact.dynamics.hht import initial_state
+from beamcontact.dynamics.step import JaxEngine
 from beamcontact.io.case import CaseError, parse_case
-from beamcontact.runner import step_control
+from beamcontact.setup.contact import build_contact
+from beamcontact.setup.model import build_model, point_sampler, uniform_velocities
+from beamcontact.setup.start import step_control
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
 
@@ -389,10 +390,10 @@ def _run_collision(case, capacity=8):
     s0 = initial_state(jnp.zeros(model.n_dof), v0, model, initial_load_state(model),
                        FrozenContact(contact.elements, cs0))
     rows = []
-    res = solve_dynamic(model, s0, case.analysis.t_end, case.analysis.alpha,
-                        NewtonOptions(rtol=1e-11), disc.length_scale, step_control(case),
-                        contact=contact,
-                        capacity=capacity, on_step=lambda s: rows.append(
+    engine = JaxEngine(model, contact, case.analysis.alpha, NewtonOptions(rtol=1e-11),
+                       disc.length_scale, case.analysis.dt)
+    res = solve_dynamic(engine, s0, case.analysis.t_end, disc.length_scale,
+                        step_control(case), capacity=capacity, on_step=lambda s: rows.append(
                             (s.t, np.asarray(s.state.u), s.diagnostics)))
     assert res.status == "completed", res.message
     return model, disc, rows

@@ -11,10 +11,11 @@ from scipy.integrate import solve_ivp
 from beamcontact.assembly.inertia import inertia_force_and_mass
 from beamcontact.assembly.model import initial_load_state
 from beamcontact.assembly.system import potential_residual_tangent
-from beamcontact.build.model import build_model, point_sampler
 from beamcontact.dynamics.control import StepControl
 from beamcontact.dynamics.driver import solve_dynamic
 from beamcontact.dynamics.hht import initial_state
+from beamcontact.dynamics.step import JaxEngine
+from beamcontact.setup.model import build_model, point_sampler
 from beamcontact.solvers.newton import NewtonOptions
 
 
@@ -24,8 +25,8 @@ def _simulate(model, disc, t_end, dt, alpha, u0=None, v0=None, **kw):
     v0 = jnp.zeros(n) if v0 is None else jnp.asarray(v0)
     state = initial_state(u0, v0, model, initial_load_state(model))
     steps = [(0.0, np.asarray(state.u), None)]
-    res = solve_dynamic(model, state, t_end, alpha, NewtonOptions(**kw), disc.length_scale,
-                        StepControl.fixed(dt),
+    engine = JaxEngine(model, None, alpha, NewtonOptions(**kw), disc.length_scale, dt)
+    res = solve_dynamic(engine, state, t_end, disc.length_scale, StepControl.fixed(dt),
                         on_step=lambda s: steps.append((s.t, np.asarray(s.state.u),
                                                         s.diagnostics)))
     assert res.status == "completed", res.message
@@ -246,7 +247,7 @@ def test_stiff_pinned_beam_swings_like_rigid_pendulum():
 
 def test_per_beam_gravity_switch_and_initial_velocity():
     """Beam "a" falls; beam "b" has gravity off and drifts at its initial velocity."""
-    from beamcontact.build.model import uniform_velocities
+    from beamcontact.setup.model import uniform_velocities
 
     g, vel = 9.81, (0.4, -1.5)
     case = static_case([beam("a", line=([0, 0], [1, 0]), degree=3, elements=3),

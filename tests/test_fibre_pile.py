@@ -18,8 +18,8 @@ G = 9.81
 
 def _points(case):
     """Contact points (n, 2), radius and whether each belongs to a fibre, at t = 0."""
-    from beamcontact.build.contact import build_contact
-    from beamcontact.build.model import build_model
+    from beamcontact.setup.contact import build_contact
+    from beamcontact.setup.model import build_model
 
     model, disc = build_model(case)
     ce = build_contact(case, disc).elements
@@ -78,8 +78,8 @@ def test_small_pile_falls_freely_until_the_first_contact(model):
     assert res.status == "completed"
     expected, ff = _free_fall_gaps(case, h["t"].to_numpy())
     assert expected[-1] < ff  # the floor is the nearest by the end
-    from beamcontact.build.contact import build_contact
-    from beamcontact.build.model import build_model
+    from beamcontact.setup.contact import build_contact
+    from beamcontact.setup.model import build_model
 
     reach = build_contact(case, build_model(case)[1]).reach
     exact = expected < 2 * reach - RADIUS - WALL_RADIUS
@@ -105,8 +105,8 @@ def test_pile_in_a_container_of_walls_falls_freely_until_the_floor():
     case = parse_case(raw)
     assert [o.name for o in case.obstacles] == ["floor", "left", "right"]
     assert all(b.name.startswith("fibre") for b in case.beams)
-    from beamcontact.build.contact import build_contact
-    from beamcontact.build.model import build_model
+    from beamcontact.setup.contact import build_contact
+    from beamcontact.setup.model import build_model
 
     model, disc = build_model(case)
     ce = build_contact(case, disc).elements

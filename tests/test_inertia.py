@@ -7,7 +7,7 @@ from _builders import beam, static_case
 
 from beamcontact.assembly.inertia import inertia_force_and_mass, kinetic_energy_and_momentum
 from beamcontact.beam.inertia import element_inertia_force, element_kinetic_energy
-from beamcontact.build.model import build_model
+from beamcontact.setup.model import build_model
 
 
 def _element():

@@ -136,7 +136,7 @@ def test_impact_with_sparse_tangent_equals_dense(tmp_path, law):
 def test_static_elastica_with_sparse_tangent():
     """A cantilever with a tip load (the elastica of tests/test_statics.py) solved with the
     sparse tangent: the tip deflection at k = P L^2 / EI = 1 is Mattiasson's 0.30172 L."""
-    from beamcontact.build.model import build_model
+    from beamcontact.setup.model import build_model
     from beamcontact.solvers.newton import NewtonOptions
     from beamcontact.statics.driver import solve_static
 

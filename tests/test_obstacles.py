@@ -12,11 +12,11 @@ from scipy.integrate import quad
 from scipy.special import gamma
 
 import beamcontact as bc
-from beamcontact.build.contact import build_contact
-from beamcontact.build.model import build_model
 from beamcontact.contact.laws import CoarseGrained, Penalty
 from beamcontact.contact.obstacles import obstacle_energy, obstacle_forces, obstacle_gaps
 from beamcontact.io.case import CaseError, parse_case
+from beamcontact.setup.contact import build_contact
+from beamcontact.setup.model import build_model
 
 R = 0.01
 RHO = 1000.0
@@ -231,7 +231,7 @@ def test_beam_inside_an_obstacle_is_an_input_error():
 
 def test_single_free_beam_with_an_obstacle_is_not_a_static_mechanism():
     """An obstacle may hold a beam: the static check leaves it to the solver."""
-    from beamcontact.build.checks import static_mechanisms
+    from beamcontact.setup.checks import static_mechanisms
 
     case = parse_case(_raw())
     assert static_mechanisms(case, build_model(case)[1]) == []

@@ -5,9 +5,9 @@ import pytest
 from _builders import beam, static_case
 
 import beamcontact.contact.overlap as overlap
-from beamcontact.build.model import build_model
 from beamcontact.contact.overlap import describe, initial_overlaps
 from beamcontact.contact.points import contact_elements
+from beamcontact.setup.model import build_model
 
 
 def _overlaps(beams, segments=3):

@@ -10,13 +10,13 @@ import pytest
 from _builders import beam, bending_stiffness, static_case
 
 import beamcontact as bc
-from beamcontact.build.contact import build_contact
-from beamcontact.build.model import build_model
 from beamcontact.contact.blocks import contact_energy
 from beamcontact.contact.points import self_exclusion
 from beamcontact.contact.problem import candidate_gaps
 from beamcontact.contact.select import closest_pair_weights, point_weights_on_device
 from beamcontact.io.case import CaseError, parse_case
+from beamcontact.setup.contact import build_contact
+from beamcontact.setup.model import build_model
 
 R = 0.01
 

@@ -4,7 +4,8 @@
   found from two scalar equations with the section integrals in closed form);
 - tip load: the inextensible elastica solved with SciPy's solve_bvp;
 - quarter-circle cantilever, small tip load: Castigliano's theorem (thin curved beam);
-- h-refinement: L2 rate min(p+1, 2(p-1)) of a 4th-order problem (DESIGN.md Sec. 6).
+- h-refinement: L2 rate min(p+1, 2(p-1)) of a 4th-order problem (docs/architecture.md,
+  "Verification").
 """
 
 import jax
@@ -15,7 +16,7 @@ from _builders import beam, bending_stiffness, static_case
 from scipy.integrate import solve_bvp
 from scipy.optimize import fsolve
 
-from beamcontact.build.model import build_model, point_sampler
+from beamcontact.setup.model import build_model, point_sampler
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
 
@@ -324,7 +325,7 @@ def _restraint_case(supports, load_at=0.5, contact=None, upper=None):
     ([{"at": "end", "type": "clamped"}], 0),
     ([{"at": "start", "type": "pinned"}, {"at": "end", "type": "pinned"}], 0)])
 def test_rigid_modes_left_free_by_the_supports(supports, modes):
-    from beamcontact.build.model import discretize, supported_dofs
+    from beamcontact.setup.model import discretize, supported_dofs
     from beamcontact.statics.restraint import rigid_modes, unrestrained_modes
 
     case = _restraint_case(supports)
@@ -371,7 +372,7 @@ def _contact_pair(gap, upper_supports=(), lower_supports=None):
 
 def _mechanism(case):
     from beamcontact.assembly.model import initial_load_state
-    from beamcontact.build.contact import build_contact
+    from beamcontact.setup.contact import build_contact
     from beamcontact.statics.driver import mechanism_message
 
     model, disc = build_model(case)

@@ -149,22 +149,22 @@ def main(argv=None) -> None:
     from threadpoolctl import threadpool_limits
 
     from beamcontact.assembly.model import initial_load_state
-    from beamcontact.build.model import build_model, point_sampler
     from beamcontact.dynamics.driver import solve_dynamic
     from beamcontact.dynamics.hht import initial_state
     from beamcontact.io.case import parse_case
-    from beamcontact.runner import step_control
-    from beamcontact.solvers.newton import NewtonOptions
+    from beamcontact.setup.model import point_sampler
+    from beamcontact.setup.start import dynamic_start, prepare
     from beamcontact.summary import effective_settings
 
     case = parse_case(vibration_case(a.elements, a.t_end, a.dt, a.error_tol, a.energy_tol,
                                      a.continuity))
-    model, disc = build_model(case)
+    # the engine and the step control of a run, the initial state made here from the
+    # projected sine velocities
+    start = dynamic_start(prepare(case), initial=False)
+    model, disc, control = start.prepared.model, start.prepared.disc, start.control
     info = disc.beam("lower")
     v_cp, proj_err = sine_velocities(info, a.V, np.asarray(model.free))
     idx, Nmid = point_sampler(disc, "lower", 0.5)
-    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, case.solver.utol)
-    control = step_control(case)
     settings = effective_settings(case)
     print(f"beamcontact vibration: V = {a.V} m/s, {a.elements} quartic C^{a.continuity} elements "
           f"({info.n_cp} control points), alpha = 0, dt (max) = {a.dt}, "
@@ -190,7 +190,7 @@ def main(argv=None) -> None:
         d0 = {k: float(v) for k, v in diagnostics(state, model).items()}
         rows.append((0.0, 0.0, total_energy(d0), 0.0))
         t0 = time.perf_counter()
-        res = solve_dynamic(model, state, a.t_end, 0.0, opts, disc.length_scale, control,
+        res = solve_dynamic(start.engine, state, a.t_end, disc.length_scale, control,
                             on_step=on_step)
         wall = time.perf_counter() - t0
     arr = np.array(rows)

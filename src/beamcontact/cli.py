@@ -76,8 +76,8 @@ def _check_static_restraints(parsed) -> None:
     """Reject a static case with a beam that nothing can hold (statics/restraint.py)."""
     if parsed.analysis.kind != "static":
         return
-    from beamcontact.build.checks import static_mechanisms
-    from beamcontact.build.model import discretize
+    from beamcontact.setup.checks import static_mechanisms
+    from beamcontact.setup.model import discretize
 
     try:
         disc = discretize(parsed)

@@ -3,7 +3,7 @@
 A :class:`RunRecord` always holds the history (one row per accepted step, the columns of
 ``history.csv``) and the snapshots (control points at the VTU cadence) in memory, so
 that :func:`beamcontact.simulate` can return them without files. With an output folder it
-also writes them as they come (DESIGN.md Sec. 4): ``history.csv`` row by row,
+also writes them as they come (docs/architecture.md, "Results"): ``history.csv`` row by row,
 ``results.h5`` (every state, for restart), ``vtk/*.vtu`` + ``beams.pvd``, and after the
 run the standard plots. Nothing is lost when a run stops: every file is valid after each
 step.
@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from beamcontact.build.model import Discretization, point_sampler, polyline_matrix
 from beamcontact.io.case import Case, at_fraction
 from beamcontact.io.results import HistoryWriter, StateWriter, read_history
 from beamcontact.io.vtk import VtkSeries, write_obstacles
+from beamcontact.setup.model import Discretization, point_sampler, polyline_matrix
 
 
 class OutputPoints:

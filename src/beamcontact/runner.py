@@ -1,4 +1,4 @@
-"""Run a validated case (DESIGN.md Sec. 4 results contract).
+"""Run a validated case (the results contract of docs/architecture.md, "Results").
 
 :func:`execute` runs statics or dynamics and returns the summary and the in-memory
 :class:`~beamcontact.record.RunRecord` (history and snapshots); with an output folder it
@@ -17,27 +17,21 @@ import jax.numpy as jnp
 import numpy as np
 
 from beamcontact import __version__, require_x64
-from beamcontact.assembly.model import LoadState, Model, initial_load_state
-from beamcontact.build.contact import build_contact, obstacle_names
-from beamcontact.build.model import (
-    Discretization,
-    build_model,
-    discretize,
-    uniform_velocities,
-)
+from beamcontact.assembly.model import LoadState, Model
 from beamcontact.contact.laws import CoarseGrained
 from beamcontact.contact.overlap import describe, initial_overlaps, obstacle_overlaps
-from beamcontact.contact.problem import freeze
 from beamcontact.contact.resolution import contact_resolution, resolution_warning
-from beamcontact.dynamics.control import EnergyAccount, StepControl, total_energy
+from beamcontact.dynamics.control import EnergyAccount, total_energy
 from beamcontact.dynamics.driver import DynamicStep, solve_dynamic
-from beamcontact.dynamics.hht import DynState, initial_state
-from beamcontact.dynamics.step import DIAGNOSTICS, host_diagnostics
+from beamcontact.dynamics.hht import DynState
+from beamcontact.dynamics.report import DIAGNOSTICS
+from beamcontact.dynamics.step import host_diagnostics
 from beamcontact.io.case import Case, CaseError, parse_case
 from beamcontact.io.results import read_last_state, write_summary
 from beamcontact.progress import Progress, ProgressInfo
 from beamcontact.record import RunRecord
-from beamcontact.solvers.newton import NewtonOptions
+from beamcontact.setup.contact import obstacle_names
+from beamcontact.setup.start import Prepared, dynamic_start, prepare
 from beamcontact.statics.driver import StaticStep, solve_static
 from beamcontact.summary import contact_summary, effective_settings, set_change_warning
 
@@ -76,13 +70,6 @@ class _Tally:
                 "compile_time_s": self.first_step_s or 0.0}
 
 
-def _discretize(case: Case) -> Discretization:
-    try:
-        return discretize(case)
-    except ValueError as exc:
-        raise CaseError(f"beams: {exc}") from None
-
-
 def run_case(case: Case, case_text: str, out_dir: Path | None,
              progress: Progress | None = None, restart: bool = False) -> dict:
     """Run ``case``, write its results into ``out_dir`` (if given); returns the summary."""
@@ -117,14 +104,11 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     if restart and out_dir is None:
         raise CaseError("a restart needs the output folder of the run to continue")
     wall0 = time.perf_counter()
-    disc = _discretize(case)
-    model, disc = build_model(case, disc)
-    opts = NewtonOptions(case.solver.max_iterations, case.solver.rtol, case.solver.utol)
-    contact = build_contact(case, disc)
+    prepared = prepare(case)
+    model, disc, contact = prepared.model, prepared.disc, prepared.contact
     warnings = [] if restart else _check_initial_overlap(case, model, contact)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
-    summary, record = run(case, case_text, disc, model, out_dir, opts, progress, restart,
-                          contact)
+    summary, record = run(prepared, case_text, out_dir, progress, restart)
     if (contact is not None and isinstance(contact.law, CoarseGrained)
             and summary.get("min_gap") is not None):
         res = contact_resolution(contact.elements, contact.law, summary["min_gap"])
@@ -174,8 +158,9 @@ def _check_initial_overlap(case: Case, model: Model, contact) -> list[str]:
     return warnings
 
 
-def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart,
-                contact) -> tuple[dict, RunRecord]:
+def _run_static(prepared: Prepared, case_text, out_dir, progress,
+                _restart) -> tuple[dict, RunRecord]:
+    case, disc, model, contact = prepared.case, prepared.disc, prepared.model, prepared.contact
     rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "load_factor",
                     ENERGY_COLUMNS)
     tally = _Tally()
@@ -194,7 +179,7 @@ def _run_static(case, case_text, disc, model, out_dir, opts, progress, _restart,
                                   None, s.iterations))
 
     try:
-        result = solve_static(model, case.analysis.load_steps, opts, disc.length_scale,
+        result = solve_static(model, case.analysis.load_steps, prepared.options, prepared.length,
                               case.solver.max_cutbacks, on_step, contact,
                               case.contact.capacity, [b.name for b in disc.beams])
         summary = {"status": result.status, "message": result.message,
@@ -297,10 +282,12 @@ def _save(rec: RunRecord, s: DynamicStep, iterations_total: int) -> None:
               energy_account=_account_record(s.diagnostics))
 
 
-def _dynamic_start(case, case_text, disc, model, out_dir, restart, contact) -> _Start:
+def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_Start, object]:
     """The start of a dynamic run: t = 0 (its row and snapshot written), or the last
-    saved state of the run in out_dir (restart)."""
+    saved state of the run in out_dir (restart); and the engine of its time loop."""
+    case, disc, model, contact = prepared.case, prepared.disc, prepared.model, prepared.contact
     an = case.analysis
+    begin = dynamic_start(prepared, initial=not restart)
     if restart:
         state, last = _restart_state(case, out_dir, model)
         if float(state.t) >= an.t_end - 1e-12 * an.t_end:
@@ -311,22 +298,24 @@ def _dynamic_start(case, case_text, disc, model, out_dir, restart, contact) -> _
                         DYNAMIC_COLUMNS, resume=(step0, float(state.t)))
         return _Start(state, step0, float(last["dt_next"]), int(last["iterations_total"]),
                       int(last["cutbacks_total"]),
-                      _account_from_record(last["energy_account"]), rec)
-    state, cs0 = _initial_dynamic_state(case, disc, model, contact)
+                      _account_from_record(last["energy_account"]), rec), begin
+    state, cs0 = begin.state, begin.contact_set
     rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
                     DYNAMIC_COLUMNS)
     diag0 = {**host_diagnostics(state, model, contact, cs0), "error": 0.0,
              "E_dissipated": 0.0, "E_set_change": 0.0}
     _save(rec, DynamicStep(0, 0.0, 0.0, an.dt, state, 0, 0, diag0), 0)
     rec.snapshot(0.0, state.u)
-    return _Start(state, 0, an.dt, 0, 0, _account_from_record(_account_record(diag0)), rec)
+    return _Start(state, 0, an.dt, 0, 0, _account_from_record(_account_record(diag0)),
+                  rec), begin
 
 
-def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
-                 contact) -> tuple[dict, RunRecord]:
+def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
+                 restart) -> tuple[dict, RunRecord]:
+    case, contact = prepared.case, prepared.contact
     an = case.analysis
     interval = case.output.vtk_interval or an.t_end / 100.0
-    start = _dynamic_start(case, case_text, disc, model, out_dir, restart, contact)
+    start, begin = _dynamic_start(prepared, case_text, out_dir, restart)
     rec = start.rec
     next_snapshot = [np.floor(float(start.state.t) / interval + 1e-9) * interval + interval]
     tally = _Tally(steps=start.step0, iterations=start.iterations, cutbacks=start.cutbacks,
@@ -343,10 +332,10 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
             progress(ProgressInfo(s.t / an.t_end, "t", s.t, s.step, s.dt, s.iterations))
 
     try:
-        result = solve_dynamic(model, start.state, an.t_end, an.alpha, opts,
-                               disc.length_scale, step_control(case), dt_start=start.dt_start,
-                               step0=start.step0, on_step=on_step, contact=contact,
-                               capacity=case.contact.capacity, account=start.account)
+        result = solve_dynamic(begin.engine, start.state, an.t_end, prepared.length,
+                               begin.control, dt_start=start.dt_start, step0=start.step0,
+                               on_step=on_step, capacity=case.contact.capacity,
+                               account=start.account)
         summary = {"status": result.status, "message": result.message,
                    "steps": start.step0 + result.steps,
                    "newton_iterations": start.iterations + result.iterations,
@@ -360,16 +349,6 @@ def _run_dynamic(case, case_text, disc, model, out_dir, opts, progress, restart,
     summary["restarted_from_step"] = start.step0 if restart else None
     summary["mean_iterations_per_step"] = summary["newton_iterations"] / max(summary["steps"], 1)
     return {**summary, **_dynamic_results(rec, contact)}, rec
-
-
-def _initial_dynamic_state(case: Case, disc: Discretization, model: Model, contact):
-    """The state at t = 0 (consistent accelerations) and its contact set."""
-    u0 = jnp.zeros(model.n_dof)
-    v0 = jnp.asarray(uniform_velocities(disc, [b.initial_velocity for b in case.beams]))
-    cs0 = None if contact is None else contact.grown_set(
-        model.x_ref, 0.0, contact.first_capacity(case.contact.capacity))[0]
-    state = initial_state(u0, v0, model, initial_load_state(model), freeze(contact, cs0))
-    return state, cs0
 
 
 def _dynamic_results(rec: RunRecord, contact) -> dict:
@@ -387,9 +366,3 @@ def _dynamic_results(rec: RunRecord, contact) -> dict:
                    "balance_residual": float(h["E_total"][-1] + h["E_dissipated"][-1]
                                              - h["E_set_change"][-1] - h["E_total"][0])},
         "extremes": rec.extremes(), **contact_summary(h, rec.points.names, contact)}
-
-
-def step_control(case: Case) -> StepControl:
-    """The step controller's settings of a validated dynamic case."""
-    an, so = case.analysis, case.solver
-    return StepControl(an.dt, an.smallest_step, so.error_tol, so.energy_tol, so.max_cutbacks)

@@ -1,7 +1,7 @@
 """The summary of a run (summary.json): settings, first impact, amplitudes, impacts.
 
 Pure functions of the case and of the history columns; the runner adds the solver's
-counters. DESIGN.md Sec. 4 lists what summary.json holds.
+counters. docs/architecture.md, "Results", lists what summary.json holds.
 """
 
 import numpy as np

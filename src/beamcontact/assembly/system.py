@@ -1,4 +1,5 @@
-"""Global residual and tangent from local energies (DESIGN.md Sec. 2).
+"""Global residual and tangent from local energies (docs/architecture.md,
+"Energies and assembly").
 
 Each term is a scalar energy of local unknowns (the axis derivatives at one Gauss point,
 one load point's control points); ``jax.grad`` and ``jax.hessian`` act locally,

@@ -1,7 +1,7 @@
 """Local energies of the planar rotation-free Bernoulli-Euler beam (paper Sec. 3).
 
 Pure JAX functions of one element's control points; forces and tangents come from
-``jax.grad`` / ``jax.hessian`` of these (DESIGN.md Sec. 2).
+``jax.grad`` / ``jax.hessian`` of these (docs/architecture.md, "Energies and assembly").
 
 Conventions (paper eqs. 10-14): g1 = dr/dxi, g = g1.g1, g2 = the unit normal obtained by
 turning the unit tangent counter-clockwise, K = (x' y'' - y' x'') / g^(3/2) the signed

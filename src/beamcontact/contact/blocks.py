@@ -5,8 +5,8 @@ p1_i = R1_i x_e1 and p2_j = R2_j x_e2, the energy is sum_ij W_ij phi(|p1_i - p2_
 AD acts on the scalar law f(s) = phi(sqrt(s)) of s = r . r, r_ij = p1_i - p2_j, only
 (f' and f''); the gradient 2 f' r and Hessian 2 f' I + 4 f'' r r^T in r, then the
 element-pair residual and the 2(n_loc) x 2(n_loc) tangent, follow by small batched
-products with the basis rows (DESIGN.md Sec. 7); the assembly scatters them, one chunk of
-blocks at a time (:func:`fold_block_forces`).
+products with the basis rows (docs/architecture.md, "Energies and assembly"); the
+assembly scatters them, one chunk of blocks at a time (:func:`fold_block_forces`).
 
 W_ij is w1_i w2_j (reference arc lengths) for the coarse-grained model, computed chunk by
 chunk from the element indices (``ContactSet.W`` is None), and the weights of the

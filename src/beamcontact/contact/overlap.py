@@ -3,7 +3,7 @@
 For every pair of points that may interact (:meth:`ContactElements.point_mask`: beams
 allowed to touch; on one beam under self-contact, points far enough apart along it), the
 surface gap q = |x_i - x_j| - R_i - R_j (the discrete gap of the contact models,
-DESIGN.md Sec. 3) is evaluated at the reference control points; a pair of beams (or a
+docs/theory.md) is evaluated at the reference control points; a pair of beams (or a
 beam with itself) with q < 0 somewhere is reported with its smallest gap and where it
 occurs.
 

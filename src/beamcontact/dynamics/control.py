@@ -13,7 +13,8 @@ size of the next step.
 """
 
 from dataclasses import dataclass, field
-from enum import IntFlag
+
+from beamcontact.dynamics.report import StepFlags
 
 # step controller (Hairer, Norsett & Wanner, Solving ODEs I, Sec. II.4): safety factor and
 # the bounds of the change of the step after an accepted or rejected step
@@ -27,15 +28,6 @@ GROW_ITERATIONS = 3
 SET_CHANGE_REFINEMENTS = 4
 # relative round-off of a total energy that is a sum of terms of either sign
 ENERGY_ROUNDOFF = 1e-12
-
-
-
-
-class StepFlags(IntFlag):
-    """Status of an attempt as the jitted step reports it (one integer, never a float)."""
-
-    CONVERGED = 1  # Newton converged
-    MISSING_BLOCK = 2  # the solution left the candidate search: a contact block was missed
 
 
 @dataclass(frozen=True)
@@ -60,14 +52,14 @@ class StepControl:
             length scale L (0: fixed steps, shortened only on failure).
         energy_tol: fraction of the energy scale E_kin + E_strain + |E_contact| that one
             step may create, or a set change may jump (0: no energy test).
-        max_rejections: successive rejected attempts at one step before the run stops.
+        max_cutbacks: successive rejected attempts at one step before the run stops.
     """
 
     dt: float
     dt_min: float
     error_tol: float = 0.0
     energy_tol: float = 0.0
-    max_rejections: int = 40
+    max_cutbacks: int = 40
 
     @classmethod
     def fixed(cls, dt: float, max_halvings: int = 12) -> "StepControl":
@@ -87,11 +79,11 @@ class Attempts:
 
     def reject(self, rejection: Rejection, control: StepControl) -> bool:
         """Count a rejected attempt; True when the run must stop: the step to retry is
-        shorter than dt_min, or more than max_rejections attempts in a row failed."""
+        shorter than dt_min, or more than max_cutbacks attempts in a row failed."""
         self.cutbacks += 1
         self.consecutive += 1
         self.by_kind[rejection.kind] = self.by_kind.get(rejection.kind, 0) + 1
-        return rejection.retry < control.dt_min or self.consecutive > control.max_rejections
+        return rejection.retry < control.dt_min or self.consecutive > control.max_cutbacks
 
     def accept(self) -> None:
         """A step was accepted: the count in a row starts again."""
@@ -164,21 +156,23 @@ def retry_step(h: float, error: float, tol: float) -> float:
 
 def verdict(report: dict, flags: StepFlags, h: float, max_penetration: float | None,
             tol: float, energy_allowance: float, created: float, jump: float,
-            set_jumps: list[float]) -> Rejection | None:
+            set_jumps: list[float], dt_min: float = 0.0) -> Rejection | None:
     """None if the attempt is accepted, else the :class:`Rejection`
     (``max_penetration`` None: no contact).
 
     A set change is refined while halving the step at least halves its jump (the jump
     came from choosing the set at a far predictor), at most SET_CHANGE_REFINEMENTS
-    times; a jump that does not shrink is a change of the model itself (IPIP gains or
-    loses a contact zone) and is accepted and accounted in E_set_change.
+    times and never below ``dt_min``; a jump that does not shrink is a change of the
+    model itself (IPIP "zones" gains or loses a contact zone, a jump of the same size
+    however short the step) and is accepted and accounted in E_set_change, never a
+    reason to stop the run.
     """
     rejected = _rejection(report, flags, h, max_penetration, tol, energy_allowance, created)
     if rejected is not None:
         return rejected
     shrinking = not set_jumps or abs(jump) <= 0.5 * set_jumps[-1]
     if (abs(jump) > energy_allowance > 0.0 and shrinking
-            and len(set_jumps) < SET_CHANGE_REFINEMENTS):
+            and len(set_jumps) < SET_CHANGE_REFINEMENTS and 0.5 * h >= dt_min):
         return Rejection("set_change", f"the contact energy jumped by {jump:.3g} J when the "
                          f"contact set changed (allowed {energy_allowance:.3g} J)", 0.5 * h)
     return None

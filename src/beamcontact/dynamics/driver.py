@@ -1,11 +1,14 @@
-"""Adaptive time stepping with HHT-alpha through impacts: the time loop.
+"""Adaptive time stepping with HHT-alpha through impacts: the time loop, whichever engine
+makes the attempts (docs/architecture.md, "Engines").
 
-Every attempt at a step is one fused dispatch (:func:`~beamcontact.dynamics.step.
-fused_step`): predictor, contact candidates, conservative advancement (the step is
-shortened before it is solved so that no point pair approaches further than a fraction of
-its gap, :mod:`~beamcontact.contact.advance`), Newton on the HHT residual, post-step
-checks and diagnostics. The host (:func:`solve_dynamic`) then accepts the step or redoes
-it shorter (:mod:`~beamcontact.dynamics.control`):
+An engine (:class:`Engine`; the JAX one is :class:`~beamcontact.dynamics.step.JaxEngine`)
+makes one attempt at a step: predictor, contact candidates, conservative advancement (the
+step is shortened before it is solved so that no point pair approaches further than a
+fraction of its gap, :mod:`~beamcontact.contact.advance`), Newton on the HHT residual,
+post-step checks and diagnostics, reported as Python numbers
+(:mod:`~beamcontact.dynamics.report`). The host loop here (:func:`solve_dynamic`), which
+holds no JAX, then accepts the step or redoes it shorter
+(:mod:`~beamcontact.dynamics.control`):
 
 * **Local error** (Zienkiewicz & Xie 1991): with the acceleration linear over the step,
   the Newmark displacement differs from the exact cubic by
@@ -31,29 +34,24 @@ it shorter (:mod:`~beamcontact.dynamics.control`):
 * **Newton failure**, a contact block missed by the search, penetration beyond
   ``max_penetration``: redo with half the step (or a wider search).
 
-A step that would have to be shorter than ``dt_min`` (or more than ``max_rejections``
+A step that would have to be shorter than ``dt_min`` (or more than ``max_cutbacks``
 attempts at one step) stops the run with a message; every accepted step has gone to
 ``on_step`` before.
 """
 
+from __future__ import annotations
+
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
 
-import jax
-import jax.numpy as jnp
-import numpy as np
-
-from beamcontact.assembly.model import Model
-from beamcontact.contact.broadphase import SearchCapacity
-from beamcontact.contact.problem import ContactProblem, freeze
 from beamcontact.dynamics.control import (
     GROW_MAX,
     Attempts,
     EnergyAccount,
     Rejection,
     StepControl,
-    StepFlags,
     energy_change,
     next_step,
     on_grid,
@@ -61,17 +59,37 @@ from beamcontact.dynamics.control import (
     total_energy,
     verdict,
 )
-from beamcontact.dynamics.hht import DynState
-from beamcontact.dynamics.step import (
-    COUNTS,
-    DIAGNOSTICS,
-    VALUES,
-    closest_pair_candidates,
-    diagnostics,
-    fused_step,
-    positions,
-)
-from beamcontact.solvers.newton import NewtonOptions
+from beamcontact.dynamics.report import DIAGNOSTICS, Attempt, Overflow, StepFlags
+
+if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
+    from beamcontact.contact.broadphase import SearchCapacity
+    from beamcontact.contact.problem import ContactProblem
+
+
+class Engine(Protocol):
+    """What the time loop asks of an engine (docs/architecture.md, "Engines").
+
+    Attributes:
+        name: "jax" or "native".
+        contact: the contact problem (None: no contact): its capacities and their growth,
+            and ``max_penetration``, are the loop's.
+    """
+
+    name: str
+    contact: ContactProblem | None
+
+    def attempt(self, state, h: float, motion_factor: float,
+                capacity: SearchCapacity | None) -> Attempt | Overflow:
+        """One attempt at a step of at most h from ``state`` (report: the step taken)."""
+
+    def energies(self, state, capacity: SearchCapacity | None) -> dict:
+        """The diagnostics of ``state`` under the contact set at its configuration."""
+
+    def at_time(self, state, t: float):
+        """``state`` with its time set to t."""
+
+    def time(self, state) -> float:
+        """The time of ``state``."""
 
 
 @dataclass(frozen=True)
@@ -83,7 +101,7 @@ class DynamicStep:
     t: float
     dt: float
     dt_next: float
-    state: DynState
+    state: object  # the engine's state (a DynState of arrays)
     iterations: int
     cutbacks: int
     diagnostics: dict
@@ -101,7 +119,7 @@ class DynamicResult:
     iterations: int
     cutbacks: int
     t: float
-    state: DynState
+    state: object
     dt_next: float
     wall_time: float
     compile_time: float
@@ -112,7 +130,8 @@ class DynamicResult:
 class _Loop:
     """The host state of the time loop between attempts (local to one solve_dynamic)."""
 
-    state: DynState
+    engine: Engine
+    state: object
     account: EnergyAccount
     h_try: float
     capacity: SearchCapacity | None
@@ -126,29 +145,27 @@ class _Loop:
 
     @property
     def t(self) -> float:
-        return float(self.state.t)
+        return self.engine.time(self.state)
 
-    def result(self, status: str, message: str) -> "DynamicResult":
+    def result(self, status: str, message: str) -> DynamicResult:
         return DynamicResult(status, message, self.steps, self.iterations,
                              self.attempts.cutbacks, self.t, self.state, self.h_try,
                              time.perf_counter() - self.start, self.compile_time or 0.0,
                              self.attempts.by_kind)
 
 
-def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
-                  options: NewtonOptions, length: float, control: StepControl, *,
-                  dt_start: float | None = None, step0: int = 0,
+def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: StepControl,
+                  *, dt_start: float | None = None, step0: int = 0,
                   on_step: Callable[[DynamicStep], None] | None = None,
-                  contact: ContactProblem | None = None, capacity: int | SearchCapacity = 64,
+                  capacity: int | SearchCapacity = 64,
                   account: EnergyAccount | None = None) -> DynamicResult:
     """Integrate from ``state`` to ``t_end`` with adaptive steps (module docstring).
 
     Args:
-        model: the discrete model.
-        state: initial (or restart) state.
+        engine: makes the attempts (:class:`Engine`; it holds the model, the contact
+            problem, alpha and the Newton settings).
+        state: initial (or restart) state, the engine's.
         t_end: final time.
-        alpha: HHT parameter in [-1/3, 0].
-        options: Newton settings.
         length: the length scale L of the tolerances.
         control: step-controller settings.
         dt_start: the step to try first (default control.dt; a restart passes the
@@ -157,29 +174,29 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
         on_step: called with every accepted step; its diagnostics hold the energies,
             momentum, min_gap, the local error ``error`` [m] and the cumulative
             ``E_dissipated`` and ``E_set_change``.
-        contact: the contact problem (None: no contact).
         capacity: initial length of the contact candidate list, or both capacities of
             the search (:class:`SearchCapacity`); they grow on overflow.
         account: the energy account of the state (a restart); default zero sums and the
             energies of ``state`` under its initial contact set.
     """
-    loop = _Loop(state, _initial_account(state, model, contact, capacity, account),
-                 control.dt if dt_start is None else dt_start,
-                 None if contact is None else contact.first_capacity(capacity))
+    contact = engine.contact
+    first = None if contact is None else contact.first_capacity(capacity)
+    loop = _Loop(engine, state, _initial_account(engine, state, first, account),
+                 control.dt if dt_start is None else dt_start, first)
     tol = control.error_tol * length
     while t_end - loop.t > 1e-12 * max(control.dt, t_end):
         h = step_size(loop.t, t_end, loop.h_try)
-        attempt = _attempt(loop, model, h, alpha, options, length, control.dt, contact)
+        attempt = _attempt(loop, h, contact)
         if attempt is None:  # the candidate list or the search margin grew: redo
             continue
-        new, report, flags = attempt
+        new, report, flags = attempt.state, attempt.report, attempt.flags
         diag = {k: report[k] for k in DIAGNOSTICS}
         created, jump, allowance = energy_change(diag, loop.account.last,
                                                  report["E_contact_before"],
                                                  report["energy_floor"], control.energy_tol)
         rejection = verdict(report, flags, report["h"],
                             None if contact is None else contact.max_penetration, tol,
-                            allowance, created, jump, loop.set_jumps)
+                            allowance, created, jump, loop.set_jumps, control.dt_min)
         if rejection is not None:
             if _reject(loop, rejection, jump, control):
                 return loop.result("failed", _failure(loop, rejection, report, control))
@@ -195,42 +212,27 @@ def solve_dynamic(model: Model, state: DynState, t_end: float, alpha: float,
     return loop.result("completed", f"reached t = {loop.t:.6g} s in {loop.steps} steps")
 
 
-def _initial_account(state: DynState, model: Model, contact: ContactProblem | None,
-                     capacity: int, account: EnergyAccount | None) -> EnergyAccount:
+def _initial_account(engine: Engine, state, capacity: SearchCapacity | None,
+                     account: EnergyAccount | None) -> EnergyAccount:
     """The energy account to start from: the given one, or zero sums and the energies of
     ``state`` under its initial contact set."""
     if account is not None and account.last is not None:
         return account
-    cs0 = None if contact is None else contact.grown_set(positions(state.u, model), 0.0,
-                                                         contact.first_capacity(capacity))[0]
-    last = {k: float(v) for k, v in diagnostics(state, model, freeze(contact, cs0)).items()}
     return EnergyAccount(0.0 if account is None else account.E_dissipated,
-                         0.0 if account is None else account.E_set_change, last)
+                         0.0 if account is None else account.E_set_change,
+                         engine.energies(state, capacity))
 
 
-def _attempt(loop: _Loop, model: Model, h: float, alpha: float, options: NewtonOptions,
-             length: float, dt: float, contact: ContactProblem | None):
-    """One attempt at a step of (at most) h: (new state, report, flags), or None when the
-    candidate list overflowed or the solution left the search margin (both grown in
-    ``loop``; the attempt is redone)."""
-    search = None if contact is None else contact.search
-    cs = None
-    # IPIP "zones" are chosen on the host; "points" and integrated laws in the fused step
-    if contact is not None and contact.law.closest_pairs and contact.law.pairing == "zones":
-        cs = _zone_set(loop, model, h, contact)
-        if cs is None:
-            return None
+def _attempt(loop: _Loop, h: float, contact: ContactProblem | None) -> Attempt | None:
+    """One attempt at a step of (at most) h, or None when the candidate list overflowed
+    or the solution left the search margin (both grown in ``loop``; the attempt is
+    redone)."""
     t0 = time.perf_counter()
-    # host scalars as NumPy float64: strongly typed like the arrays they replace, and
-    # passed to the jitted step without eager device operations
-    new, values, counts = fused_step(
-        loop.state, model, np.float64(h), np.float64(alpha), np.float64(options.rtol),
-        np.float64(options.utol * length), np.float64(dt), np.float64(loop.motion_factor),
-        search, cs, max_iterations=options.max_iterations, capacity=loop.capacity)
-    values, counts = jax.device_get((values, counts))
-    report = {**dict(zip(VALUES, values.tolist(), strict=True)),
-              **dict(zip(COUNTS, counts.tolist(), strict=True))}
-    flags = StepFlags(report.pop("flags"))
+    attempt = loop.engine.attempt(loop.state, h, loop.motion_factor, loop.capacity)
+    if isinstance(attempt, Overflow):
+        loop.capacity = contact.grown(loop.capacity, attempt.count, attempt.load)
+        return None
+    report, flags = attempt.report, attempt.flags
     if loop.compile_time is None:
         loop.compile_time = time.perf_counter() - t0
     loop.iterations += report["iterations"]
@@ -245,19 +247,7 @@ def _attempt(loop: _Loop, model: Model, h: float, alpha: float, options: NewtonO
         if converged and StepFlags.MISSING_BLOCK in flags and loop.motion_factor < 16:
             loop.motion_factor *= 2.0  # the step moved further than foreseen: redo it
             return None
-    return new, report, flags
-
-
-def _zone_set(loop: _Loop, model: Model, h: float, contact: ContactProblem):
-    """The IPIP "zones" set of an attempt, chosen on the host, or None when the candidate
-    list overflowed (then ``loop.capacity`` has grown)."""
-    args = (loop.state, model, np.float64(h), np.float64(loop.motion_factor), contact.search)
-    pairs, q, count, load, motion = jax.device_get(
-        closest_pair_candidates(*args, capacity=loop.capacity))
-    if not loop.capacity.fits(int(count), int(load)):
-        loop.capacity = contact.grown(loop.capacity, int(count), int(load))
-        return None
-    return contact.closest_pair_set(pairs, q, float(motion))
+    return attempt
 
 
 def _reject(loop: _Loop, rejection: Rejection, jump: float, control: StepControl) -> bool:
@@ -282,7 +272,7 @@ def _failure(loop: _Loop, rejection: Rejection, report: dict, control: StepContr
             f"{loop.t:.6g} s")
 
 
-def _accept(loop: _Loop, new: DynState, report: dict, diag: dict, created: float,
+def _accept(loop: _Loop, new, report: dict, diag: dict, created: float,
             jump: float, h: float, tol: float, dt: float, t_end: float) -> None:
     """Take the attempt: advance the time, the energy account and the step to try next."""
     h_used = report["h"]
@@ -291,7 +281,7 @@ def _accept(loop: _Loop, new: DynState, report: dict, diag: dict, created: float
     loop.set_jumps.clear()
     loop.motion_factor = 1.0
     t = on_grid(loop.t + h_used, dt, t_end)
-    loop.state = replace(new, t=jnp.asarray(t))
+    loop.state = loop.engine.at_time(new, t)
     loop.steps += 1
     loop.account = EnergyAccount(loop.account.E_dissipated - created,
                                  loop.account.E_set_change + jump, diag)

@@ -1,44 +1,39 @@
-"""One attempt at a time step, fused into one jitted dispatch, and the diagnostics of a
-state (energies, momentum): the device side of dynamics/driver.py's loop.
+"""The JAX engine of the time loop: one attempt at a time step fused into one jitted
+dispatch, and the diagnostics of a state (energies, momentum).
 
-The attempt (:func:`fused_step`): predictor, contact candidates, conservative advancement
-(the step is shortened before it is solved so that no point pair approaches further than
-a fraction of its gap, :mod:`~beamcontact.contact.advance`), Newton on the HHT residual
-(:func:`~beamcontact.dynamics.hht.hht_step`), the local error estimate
-(Zienkiewicz & Xie 1991), the post-step contact checks and the diagnostics.
+The attempt (:func:`fused_attempt`): predictor, the contact set of the step and the
+conservative advancement (:mod:`~beamcontact.contact.step_set`: the step is shortened
+before it is solved so that no point pair approaches further than a fraction of its
+gap), Newton on the HHT residual (:func:`~beamcontact.dynamics.hht.hht_step`), the local
+error estimate (Zienkiewicz & Xie 1991), the post-step contact checks and the
+diagnostics. :class:`JaxEngine` is what the driver (dynamics/driver.py) calls.
 """
 
-from functools import partial
+from dataclasses import replace
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from beamcontact._persistent import persistent_jit
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
-from beamcontact.contact.advance import approach_ratio
 from beamcontact.contact.blocks import ContactSet, FrozenContact
 from beamcontact.contact.broadphase import SearchCapacity
-from beamcontact.contact.obstacles import obstacle_approach_ratio, obstacle_gaps
-from beamcontact.contact.problem import (
-    ContactProblem,
-    ContactSearch,
-    candidate_gaps,
-    freeze,
-    missed_blocks,
-    near_candidates,
-)
-from beamcontact.contact.select import point_weights_on_device
-from beamcontact.dynamics.control import ADVANCE_FRACTION, StepFlags, total_energy
+from beamcontact.contact.problem import ContactProblem, ContactSearch, candidate_gaps, freeze
+from beamcontact.contact.step_set import advanced_step, after_step, chosen_in_step, step_set
+from beamcontact.dynamics.control import total_energy
 from beamcontact.dynamics.hht import DynState, hht_step, predictor
-
-# the diagnostics of a state
-DIAGNOSTICS = ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y")
-# the quantities of one attempt (float64) and its counts (integers, the status flags first)
-VALUES = ("residual_norm", "initial_residual_norm", "h", "error", "approach", "min_gap",
-          "E_contact_before", "energy_floor", *DIAGNOSTICS)
-COUNTS = ("flags", "iterations", "count", "count_after", "load", "load_after")
+from beamcontact.dynamics.report import (
+    COUNTS,
+    VALUES,
+    Attempt,
+    Overflow,
+    StepFlags,
+    read_report,
+)
+from beamcontact.solvers.newton import NewtonOptions
 
 
 @jax.jit
@@ -64,24 +59,25 @@ def host_diagnostics(state: DynState, model: Model, contact: ContactProblem | No
 
 
 @persistent_jit(static_argnames=("max_iterations", "capacity"))
-def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, motion_factor,
-               search: ContactSearch | None = None, cs: ContactSet | None = None, *,
-               max_iterations: int, capacity: SearchCapacity | None = None):
+def fused_attempt(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, motion_factor,
+                  search: ContactSearch | None = None, cs: ContactSet | None = None, *,
+                  max_iterations: int, capacity: SearchCapacity | None = None):
     """One attempt at a step of (at most) h, fused into a single dispatch.
 
-    Predictor; candidate blocks within the law's interaction distance plus the motion,
-    or for IPIP "points" the candidates with their closest-point weights
-    (:func:`_closest_points`), unless ``cs`` is given (IPIP "zones", chosen on the
-    host); the conservative
-    advancement (:func:`_advanced_step`); the HHT-alpha Newton solve (increment tolerance
-    ``utol`` scaled by (h/dt_ref)^2: the acceleration is a displacement difference over
-    beta h^2); the local error estimate; the post-step contact checks; diagnostics.
+    Predictor; the contact set at the predictor
+    (:func:`~beamcontact.contact.step_set.step_set`), unless ``cs`` is given (IPIP
+    "zones", chosen on the host); the conservative advancement
+    (:func:`~beamcontact.contact.step_set.advanced_step`); the HHT-alpha Newton solve
+    (increment tolerance ``utol`` scaled by (h/dt_ref)^2: the acceleration is a
+    displacement difference over beta h^2); the local error estimate; the post-step
+    contact checks (:func:`~beamcontact.contact.step_set.after_step`); diagnostics.
 
     Returns (new state, values, counts): values a float64 vector of the quantities named
-    in :data:`VALUES` (``h`` is the step actually taken), counts an integer vector of
-    :data:`COUNTS` (the first is the :class:`~beamcontact.dynamics.control.StepFlags`);
-    contact entries are 0 (min_gap NaN) without contact. Two vectors, one device-to-host
-    copy each, instead of one per scalar.
+    in :data:`~beamcontact.dynamics.report.VALUES` (``h`` is the step actually taken),
+    counts an integer vector of :data:`~beamcontact.dynamics.report.COUNTS` (the first is
+    the :class:`~beamcontact.dynamics.report.StepFlags`); contact entries are 0 (min_gap
+    NaN) without contact. Two vectors, one device-to-host copy each, instead of one per
+    scalar.
     """
     report = dict.fromkeys(VALUES + COUNTS, jnp.zeros((), jnp.int64))
     report.update(dict.fromkeys(VALUES, jnp.zeros(())))
@@ -93,16 +89,11 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
     h_used = h
     contact = None
     if search is not None:
-        if cs is None and _device_pairing(search.law):
-            cs, report["count"], report["load"] = _closest_points(x_pred, motion, search,
-                                                                  capacity)
-        elif cs is None:
-            pairs, report["count"], report["load"] = near_candidates(
-                x_pred, search.elements, search.reach, search.law.interaction_distance(),
-                motion, capacity)
-            cs = ContactSet(pairs, None, search.law)
+        if cs is None:
+            cs, report["count"], report["load"] = step_set(x_pred, motion, search, capacity)
         contact = FrozenContact(search.elements, cs, search.obstacles)
-        h_used = _advanced_step(state, x0, h, search, cs)
+        h_used = advanced_step(state.v.reshape(-1, 2), state.a.reshape(-1, 2), x0, h, search,
+                               cs)
     # no fixed floor: at short steps an increment test of a fixed size would accept
     # velocities wrong by gamma utol / (beta h); the residual test governs there, and the
     # increment test only stops Newton at the round-off of the positions
@@ -115,8 +106,8 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
                   initial_residual_norm=res.initial_residual_norm, h=h_used,
                   error=h_used**2 * jnp.abs(beta - 1.0 / 6.0) * jnp.max(jnp.abs(da)))
     if search is not None:
-        missing, after = _contact_after_step(new, model, x0, x_pred, motion, search, cs,
-                                             capacity)
+        missing, after = after_step(positions(new.u, model), x0, x_pred, motion, search, cs,
+                                    capacity)
         report.update(after)
     report.update(diagnostics(new, model, contact))
     # energies of the two states are compared under the same frozen set; the jump from
@@ -128,45 +119,6 @@ def fused_step(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, moti
                        + jnp.where(missing, int(StepFlags.MISSING_BLOCK), 0))
     return (new, jnp.stack([jnp.asarray(report[k], jnp.float64) for k in VALUES]),
             jnp.stack([jnp.asarray(report[k], jnp.int64) for k in COUNTS]))
-
-
-def _advanced_step(state: DynState, x0, h, search: ContactSearch, cs: ContactSet):
-    """h, shortened so that the predictor's approach of every candidate point pair stays
-    below ADVANCE_FRACTION of its gap plus the law's slack (conservative advancement)."""
-    v, a = state.v.reshape(-1, 2), state.a.reshape(-1, 2)
-    ratio = _approach(x0, (h * v, 0.5 * h * h * a), search, cs)
-    return h * jnp.minimum(1.0, ADVANCE_FRACTION / jnp.maximum(ratio, 1e-300))
-
-
-def _contact_after_step(new: DynState, model: Model, x0, x_pred, motion,
-                        search: ContactSearch, cs: ContactSet, capacity: SearchCapacity):
-    """The post-step contact checks: (missed a block?, {count_after, load_after, min_gap,
-    approach}).
-
-    A block is missed when the broad phase at the solution finds an interacting block the
-    frozen set lacks, or when the step moved further from the predictor than the search
-    margin (it may have passed blocks that were never candidates)."""
-    ce, reach = search.elements, search.reach
-    x_new = positions(new.u, model)
-    missing, count, load, gap = missed_blocks(x_new, ce, cs.pairs, reach,
-                                        search.law.interaction_distance(), capacity)
-    deviation = jnp.max(jnp.linalg.norm(x_new - x_pred, axis=1))
-    missing = missing | (deviation > motion + 1e-6 * reach)
-    if search.obstacles is not None:
-        gap = jnp.minimum(gap, jnp.min(obstacle_gaps(x_new, ce, search.obstacles)))
-    return missing, {"count_after": count, "load_after": load, "min_gap": gap,
-                     "approach": _approach(x0, (x_new - x0,), search, cs)}
-
-
-def _approach(x0, displacements, search: ContactSearch, cs: ContactSet):
-    """The largest approach ratio of the candidate point pairs and of the points against
-    the obstacles (:mod:`~beamcontact.contact.advance`)."""
-    slack = search.law.advance_slack()
-    ratio = approach_ratio(x0, displacements, search.elements, cs.pairs, slack)
-    if search.obstacles is None:
-        return ratio
-    return jnp.maximum(ratio, obstacle_approach_ratio(x0, displacements, search.elements,
-                                                      search.obstacles, slack))
 
 
 def _energy_floor(state: DynState, new: DynState, model: Model, e_kin_new, utol_h, alpha,
@@ -203,24 +155,7 @@ def positions(u, model: Model):
     return model.x_ref + u.reshape(-1, 2)
 
 
-def _device_pairing(law) -> bool:
-    """Whether the law's closest pairs are chosen on the device (IPIP "points"), inside
-    the fused step; "zones" are chosen on the host and passed in."""
-    return law.closest_pairs and law.pairing == "points"
-
-
-def _closest_points(x_pred, motion, search: ContactSearch, capacity: SearchCapacity):
-    """IPIP with pairing = "points" at the predictor x_pred: candidates, gaps and the
-    weights of :func:`~beamcontact.contact.select.point_weights_on_device`, blocks with a
-    weight first (as the host's selection orders them); returns (set, count, load)."""
-    pairs, q, count, load = candidate_gaps(x_pred, search.elements, search.reach + motion,
-                                           capacity)
-    W = point_weights_on_device(q, pairs, search.elements, 2.0 * motion)
-    order = jnp.argsort(~jnp.any(W != 0.0, axis=(1, 2)), stable=True)
-    return ContactSet(pairs[order], W[order], search.law), count, load
-
-
-@partial(jax.jit, static_argnames=("capacity",))
+@jax.jit(static_argnames=("capacity",))
 def closest_pair_candidates(state: DynState, model: Model, h, motion_factor,
                             search: ContactSearch, *, capacity: SearchCapacity):
     """Predictor, motion bound, candidate blocks and their point-pair gaps in one dispatch,
@@ -230,3 +165,67 @@ def closest_pair_candidates(state: DynState, model: Model, h, motion_factor,
                             search.reach + motion, capacity), motion)
 
 
+
+
+class JaxEngine:
+    """The JAX engine of the time loop (docs/architecture.md, "Engines"): one attempt is
+    one fused dispatch (:func:`fused_attempt`); IPIP "zones" are chosen on the host before
+    it (:meth:`ContactProblem.closest_pair_set`).
+
+    The driver (dynamics/driver.py) calls :meth:`attempt`, :meth:`energies` and
+    :meth:`at_time`; it sees the state only as an opaque value and the report as Python
+    numbers.
+    """
+
+    name = "jax"
+
+    def __init__(self, model: Model, contact: ContactProblem | None, alpha: float,
+                 options: NewtonOptions, length: float, dt_ref: float):
+        self.model, self.contact, self.options = model, contact, options
+        # host scalars as NumPy float64: strongly typed like the arrays they replace, and
+        # passed to the jitted step without eager device operations
+        self._scalars = (np.float64(alpha), np.float64(options.rtol),
+                         np.float64(options.utol * length), np.float64(dt_ref))
+        self._search = None if contact is None else contact.search
+
+    def attempt(self, state: DynState, h: float, motion_factor: float,
+                capacity: SearchCapacity | None) -> Attempt | Overflow:
+        """One attempt at a step of (at most) h from ``state``, or the :class:`Overflow`
+        of the host's "zones" selection."""
+        cs = None
+        if self.contact is not None and not chosen_in_step(self.contact.law):
+            cs = self._zone_set(state, h, motion_factor, capacity)
+            if isinstance(cs, Overflow):
+                return cs
+        new, values, counts = fused_attempt(
+            state, self.model, np.float64(h), *self._scalars, np.float64(motion_factor),
+            self._search, cs, max_iterations=self.options.max_iterations, capacity=capacity)
+        values, counts = jax.device_get((values, counts))
+        return Attempt(new, *read_report(values.tolist(), counts.tolist()))
+
+    def _zone_set(self, state: DynState, h: float, motion_factor: float,
+                  capacity: SearchCapacity) -> ContactSet | Overflow:
+        """The IPIP "zones" set of an attempt, chosen on the host."""
+        pairs, q, count, load, motion = jax.device_get(closest_pair_candidates(
+            state, self.model, np.float64(h), np.float64(motion_factor), self._search,
+            capacity=capacity))
+        if not capacity.fits(int(count), int(load)):
+            return Overflow(int(count), int(load))
+        return self.contact.closest_pair_set(pairs, q, float(motion))
+
+    def energies(self, state: DynState, capacity: SearchCapacity | None) -> dict:
+        """The diagnostics (:data:`~beamcontact.dynamics.report.DIAGNOSTICS`) of ``state``
+        under the contact set at its configuration (the energy account's start)."""
+        cs = None if self.contact is None else self.contact.grown_set(
+            positions(state.u, self.model), 0.0, capacity)[0]
+        return {k: float(v) for k, v in
+                diagnostics(state, self.model, freeze(self.contact, cs)).items()}
+
+    def at_time(self, state: DynState, t: float) -> DynState:
+        """``state`` with its time set to t (the driver snaps times onto its grid)."""
+        return replace(state, t=jnp.asarray(t))
+
+    @staticmethod
+    def time(state: DynState) -> float:
+        """The time of ``state``."""
+        return float(state.t)

@@ -1,4 +1,4 @@
-"""The case: TOML validated by pydantic v2 (DESIGN.md Sec. 4), or built in Python.
+"""The case: TOML validated by pydantic v2 (docs/case_file.md), or built in Python.
 
 Every invalid value is reported as one line naming the key, e.g.
 ``beams[0] (lower).section.radius: must be > 0, got -0.1``. SI units throughout.
@@ -168,7 +168,7 @@ def _check_references(case: Case) -> None:
     if case.contact.self_exclusion is not None and not case.contact.self_contact:
         raise CaseError("contact.self_exclusion: applies only with contact.self_contact = "
                         "true")
-    if case.contact.model != "ipip" and case.contact.pairing != "zones":
+    if case.contact.model != "ipip" and case.contact.pairing is not None:
         raise CaseError(f"contact.pairing: applies to model \"ipip\" only (model is "
                         f"\"{case.contact.model}\")")
     if case.contact.model == "cg":

@@ -1,4 +1,4 @@
-"""The tables of a case file (DESIGN.md Sec. 4) as pydantic v2 models: ``[analysis]``,
+"""The tables of a case file (docs/case_file.md) as pydantic v2 models: ``[analysis]``,
 ``[[beams]]`` (with ``line`` / ``arc`` / ``nurbs``, ``section``, ``material``,
 ``supports``), ``[[loads]]``, ``[contact]``, ``[[obstacles]]``, ``[solver]``,
 ``[output]``. Each validates its own values; :class:`beamcontact.io.case.Case` puts
@@ -251,12 +251,13 @@ class Contact(_Strict):
     -max_penetration is redone with half the step [m] (default: the smallest radius).
     ``capacity``: initial length of the list of candidate element pairs (it grows by
     itself when the broad phase finds more; unused entries cost nothing but memory).
-    ``pairing`` (IPIP only): "zones", the paper's closest pair of integration points of
-    each contact zone (a zone that appears while the beams overlap makes the contact
-    energy jump), or "points", every integration point with its closest point on the
-    other beam, 1/2 from each side (the contact energy is continuous, so the contact is
-    conservative; along a line contact it acts as a line penalty of about eps per point
-    spacing). See docs/theory.md, "IPIP pairing rules".
+    ``pairing`` (IPIP only; default "points"): "points", every integration point with its
+    closest point on the other beam, 1/2 from each side (the contact energy is continuous,
+    so the contact is conservative; along a line contact it acts as a line penalty of
+    about eps per point spacing), or "zones", the paper's closest pair of integration
+    points of each contact zone (a zone that appears while the beams overlap makes the
+    contact energy jump; the case files that reproduce the paper's figures set it). See
+    docs/theory.md, "IPIP pairing rules".
     ``self_contact``: every beam also touches itself (a rolled or folded beam), with the
     same law; two points of one beam interact only if they are at least
     ``self_exclusion`` apart along it in the reference configuration [m] (default: four
@@ -274,7 +275,7 @@ class Contact(_Strict):
     q_reg: Positive | None = None
     max_penetration: Positive | None = None
     capacity: Annotated[int, Field(ge=1)] = 128
-    pairing: Literal["zones", "points"] = "zones"
+    pairing: Literal["zones", "points"] | None = None  # None: "points" (IPIP only)
     self_contact: bool = False
     self_exclusion: Positive | None = None
     pairs: Annotated[list[Annotated[list[str], BeforeValidator(_as_list),
@@ -287,7 +288,8 @@ class Contact(_Strict):
         from beamcontact.contact.laws import CoarseGrained, Penalty
 
         if self.model == "ipip":
-            return Penalty(self.penalty, self.max_penetration_or(radii), self.pairing)
+            return Penalty(self.penalty, self.max_penetration_or(radii),
+                           self.pairing or "points")
         if self.model == "cg":
             q_reg = self.q_reg if self.q_reg is not None else 1e-3 * min(radii)
             return CoarseGrained(self.k, self.exponent, q_reg, self.cutoff)

@@ -20,15 +20,16 @@ class Penalty:
         max_penetration: a step whose smallest gap falls below -max_penetration is redone
             shorter [m]; also the advancement slack (the force acts only once the beams
             overlap).
-        pairing: which pairs are closest (:mod:`beamcontact.contact.select`): "zones",
-            the paper's closest pair of each contact zone, or "points", every point with
-            its closest point on the other beam (a conservative variant). Static: a
-            change recompiles nothing on the device (the selection runs on the host).
+        pairing: which pairs are closest (:mod:`beamcontact.contact.select`): "points",
+            every point with its closest point on the other beam (the contact energy is
+            continuous: the default), or "zones", the paper's closest pair of each contact
+            zone. Static: part of the compiled signature ("points" are chosen inside the
+            step, "zones" on the host).
     """
 
     penalty: float
     max_penetration: float
-    pairing: str = field(default="zones", metadata=dict(static=True))
+    pairing: str = field(default="points", metadata=dict(static=True))
 
     closest_pairs: ClassVar[bool] = True
 

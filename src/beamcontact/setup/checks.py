@@ -1,7 +1,7 @@
 """Checks of a case before it runs that need its discretisation (statics/restraint.py
 holds the mechanics: rigid modes, supports, singular tangents)."""
 
-from beamcontact.build.model import supported_dofs
+from beamcontact.setup.model import supported_dofs
 from beamcontact.statics.restraint import HINT, _plural, describe_modes, unrestrained_modes
 
 
