@@ -158,3 +158,11 @@ def test_python_built_free_fall_is_the_toml_case_and_runs_identically():
                                                      "t_end": 0.004}})
     a, b = bc.simulate(short), bc.simulate(from_file)
     assert len(a.history) == 5 and a.history.equals(b.history)
+
+
+def test_ipip_pairs_every_point_unless_the_case_asks_for_zones():
+    """The default IPIP rule is the conservative "points"; the paper's "zones" is asked for
+    (examples/free_fall/case_ipip.toml does, for the paper's figures)."""
+    assert bc.Contact(model="ipip").law([0.1]).pairing == "points"
+    assert bc.Contact(model="ipip", pairing="zones").law([0.1]).pairing == "zones"
+    assert bc.load_case(ROOT / "examples/free_fall/case_ipip.toml").contact.pairing == "zones"

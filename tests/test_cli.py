@@ -126,6 +126,7 @@ BAD_DYNAMIC = [
     ((("output", "vtk_interval"), 0.0), "output.vtk_interval"),
     ((("contact",), {"model": "ipip", "pairing": "nearest"}), "contact.pairing"),
     ((("contact",), {"model": "cg", "pairing": "points"}), "contact.pairing"),
+    ((("contact",), {"model": "cg", "pairing": "zones"}), "contact.pairing"),
 ]
 
 
