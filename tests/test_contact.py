@@ -26,6 +26,7 @@ from beamcontact.setup.model import build_model, point_sampler, uniform_velociti
 from beamcontact.setup.start import step_control
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
+from beamcontact.statics.step import JaxStatics
 
 # --- eq. (9) against brute-force integration of eq. (8) ----------------------------------
 
@@ -357,8 +358,8 @@ def test_ipip_static_reaction_and_penetration():
     model, disc = build_model(case)
     contact = build_contact(case, disc)
     steps = []
-    res = solve_static(model, 2, NewtonOptions(), disc.length_scale, on_step=steps.append,
-                       contact=contact)
+    res = solve_static(JaxStatics(model, contact, NewtonOptions(), disc.length_scale), 2,
+                       on_step=steps.append)
     assert res.status == "completed", res.message
     last = steps[-1].energies
     np.testing.assert_allclose(last["min_gap"], -F / eps, rtol=1e-4)

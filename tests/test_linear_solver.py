@@ -139,6 +139,7 @@ def test_static_elastica_with_sparse_tangent():
     from beamcontact.setup.model import build_model
     from beamcontact.solvers.newton import NewtonOptions
     from beamcontact.statics.driver import solve_static
+    from beamcontact.statics.step import JaxStatics
 
     L, a, E = 1.0, 0.002, 1.0e9
     case = static_case([beam(line=([0, 0], [L, 0]), degree=4, elements=16, radius=a, E=E,
@@ -148,7 +149,7 @@ def test_static_elastica_with_sparse_tangent():
                        load_steps=2, linear_solver="sparse")
     model, disc = build_model(case)
     assert model.sparse
-    res = solve_static(model, 2, NewtonOptions(), disc.length_scale)
+    res = solve_static(JaxStatics(model, None, NewtonOptions(), disc.length_scale), 2)
     assert res.status == "completed"
     tip = np.asarray(model.x_ref + res.u.reshape(-1, 2))[-1]
     assert abs(-tip[1] - 0.30172 * L) < 2e-4 * L

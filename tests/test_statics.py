@@ -19,12 +19,14 @@ from scipy.optimize import fsolve
 from beamcontact.setup.model import build_model, point_sampler
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
+from beamcontact.statics.step import JaxStatics
 
 
 def _solve(case, steps=None):
     model, disc = build_model(case)
     states = []
-    res = solve_static(model, case.analysis.load_steps, NewtonOptions(), disc.length_scale,
+    res = solve_static(JaxStatics(model, None, NewtonOptions(), disc.length_scale),
+                       case.analysis.load_steps,
                        on_step=lambda s: states.append((s.load_factor, s.u, s.iterations)))
     assert res.status == "completed", res.message
     return model, disc, states
@@ -350,13 +352,13 @@ def test_singular_stiffness_stops_at_once_naming_the_beam(supports, says):
     case = _restraint_case(supports)
     model, disc = build_model(case)
     steps = []
-    res = solve_static(model, 2, NewtonOptions(), disc.length_scale, on_step=steps.append,
-                       beam_names=[b.name for b in disc.beams])
+    engine = JaxStatics(model, None, NewtonOptions(), disc.length_scale)
+    res = solve_static(engine, 2, on_step=steps.append, beam_names=[b.name for b in disc.beams])
     assert res.status == "failed" and res.steps == 0 and res.cutbacks == 0
     assert res.message.startswith("the stiffness matrix is singular: " + says), res.message
     assert res.message.endswith("add supports: clamp an end, or pin both ends")
     assert [s.step for s in steps] == [0]  # the initial state is still reported
-    unnamed = solve_static(model, 2, NewtonOptions(), disc.length_scale)
+    unnamed = solve_static(engine, 2)
     assert "beam #1 (control points 0-8) has" in unnamed.message
 
 
@@ -373,7 +375,7 @@ def _contact_pair(gap, upper_supports=(), lower_supports=None):
 def _mechanism(case):
     from beamcontact.assembly.model import initial_load_state
     from beamcontact.setup.contact import build_contact
-    from beamcontact.statics.driver import mechanism_message
+    from beamcontact.statics.step import mechanism_message
 
     model, disc = build_model(case)
     contact = build_contact(case, disc)

@@ -31,7 +31,7 @@ from beamcontact.io.results import read_last_state, write_summary
 from beamcontact.progress import Progress, ProgressInfo
 from beamcontact.record import RunRecord
 from beamcontact.setup.contact import obstacle_names
-from beamcontact.setup.start import Prepared, dynamic_start, prepare
+from beamcontact.setup.start import Prepared, dynamic_start, prepare, static_engine
 from beamcontact.statics.driver import StaticStep, solve_static
 from beamcontact.summary import contact_summary, effective_settings, set_change_warning
 
@@ -160,7 +160,7 @@ def _check_initial_overlap(case: Case, model: Model, contact) -> list[str]:
 
 def _run_static(prepared: Prepared, case_text, out_dir, progress,
                 _restart) -> tuple[dict, RunRecord]:
-    case, disc, model, contact = prepared.case, prepared.disc, prepared.model, prepared.contact
+    case, disc, model = prepared.case, prepared.disc, prepared.model
     rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "load_factor",
                     ENERGY_COLUMNS)
     tally = _Tally()
@@ -179,9 +179,9 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress,
                                   None, s.iterations))
 
     try:
-        result = solve_static(model, case.analysis.load_steps, prepared.options, prepared.length,
-                              case.solver.max_cutbacks, on_step, contact,
-                              case.contact.capacity, [b.name for b in disc.beams])
+        result = solve_static(static_engine(prepared), case.analysis.load_steps,
+                              case.solver.max_cutbacks, on_step, case.contact.capacity,
+                              [b.name for b in disc.beams])
         summary = {"status": result.status, "message": result.message,
                    "steps": result.steps, "newton_iterations": result.iterations,
                    "cutbacks": result.cutbacks, "final_load_factor": result.load_factor,

@@ -2,9 +2,10 @@
 (the runner, the tests and the benchmarks all start here).
 
 :func:`prepare` discretises the case and builds the model, the contact problem and the
-Newton settings; :func:`dynamic_start` adds the engine of the time loop
-(:class:`~beamcontact.dynamics.step.JaxEngine`), the step controller's settings and the
-consistent state at t = 0 (paper Sec. 4: M a0 = f(u0)).
+Newton settings; :func:`static_engine` is the engine of load stepping
+(:class:`~beamcontact.statics.step.JaxStatics`); :func:`dynamic_start` adds the engine of
+the time loop (:class:`~beamcontact.dynamics.step.JaxEngine`), the step controller's
+settings and the consistent state at t = 0 (paper Sec. 4: M a0 = f(u0)).
 """
 
 from dataclasses import dataclass
@@ -57,6 +58,13 @@ def prepare(case: Case) -> Prepared:
     so = case.solver
     return Prepared(case, disc, model, build_contact(case, disc),
                     NewtonOptions(so.max_iterations, so.rtol, so.utol))
+
+
+def static_engine(prepared: Prepared):
+    """The engine of load stepping (:class:`~beamcontact.statics.step.JaxStatics`)."""
+    from beamcontact.statics.step import JaxStatics
+
+    return JaxStatics(prepared.model, prepared.contact, prepared.options, prepared.length)
 
 
 def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
