@@ -8,7 +8,8 @@ a run compiles about 35 small functions besides the step (initial state, diagnos
 checks), together about 1.5 s when each is compiled afresh. Location:
 ``$BEAMCONTACT_CACHE_DIR``, else ``$XDG_CACHE_HOME/beamcontact/jax``, else
 ``~/.cache/beamcontact/jax``; set ``BEAMCONTACT_CACHE_DIR`` to an empty string to switch
-the cache off. Its ``exported/`` folder holds the traced programs of ``_persistent.py``.
+the cache off. Its ``exported/`` folder holds the traced programs of ``_persistent.py``,
+its ``numba/`` folder the compiled native kernels (``_native.py``).
 """
 
 import os

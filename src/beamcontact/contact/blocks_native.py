@@ -1,0 +1,322 @@
+"""Native (Numba) contact kernels of one element pair and of one element against one rigid
+obstacle: energy, gradient and Hessian in the element's control points.
+
+The JAX path (:mod:`beamcontact.contact.blocks`, :mod:`beamcontact.contact.obstacles`)
+stays the definition; these kernels compute the same sums (tests/test_native_contact.py):
+for a block with contact points p1_i = R1_i X1, p2_j = R2_j X2, r_ij = p1_i - p2_j and
+s = r . r, the energy sum_ij W_ij f(s_ij) with f(s) = phi(sqrt(s)) the pair law (eq. 9
+coarse-grained, eq. 3 IPIP penalty), the pair gradient 2 W f' r and Hessian
+2 W f' I + 4 W f'' r r^T lifted to the control points by the basis rows.
+
+Where the JAX path evaluates every point pair of a block, these skip the pairs that
+contribute exactly nothing: weight 0 (IPIP pairs not selected, masked pairs) and
+centre-line distance at or beyond the law's reach (the cutoff of eq. 9; R1 + R2 for the
+penalty, which acts only on overlaps), a whole row at once when its point is beyond the
+reach of the bounding box of the other element's points. Most pairs of a candidate block
+are beyond the cutoff, which is where the speed comes from.
+
+The law is chosen by a small integer (LAW_CG, LAW_PENALTY) and its parameters travel as
+plain floats: cached Numba code cannot close over a law object. Layout: for elements of
+n1 and n2 control points, f has 2 (n1 + n2) entries and k is square of that size, in the
+order of the JAX ``fold_block_forces``: (X1.ravel(), X2.ravel()), i.e. dof 2 k + a of
+element 1 then 2 n1 + 2 l + b of element 2 (``f[:2 n1]`` and ``f[2 n1:]`` are the two
+elements' rows).
+"""
+
+import math
+
+import numpy as np
+
+from beamcontact._native import njit
+from beamcontact.contact.laws.coarse_grained_native import cg_obstacle, cg_pair_s
+from beamcontact.contact.laws.penalty_native import penalty_obstacle, penalty_pair_s
+
+LAW_CG = 0
+LAW_PENALTY = 1
+
+# a margin on the squared reach: fl(reach * reach) may round below reach^2, and a pair
+# skipped must be one whose law is exactly zero (d >= reach after the sqrt)
+_REACH_MARGIN = 1.0 + 1e-12
+
+
+@njit
+def pair_law_s(law, s, R12, amplitude, m, q_reg, cutoff):
+    """(f, df/ds, d2f/ds2) of the pair law ``law`` at squared distance s (eq. 9 or 3)."""
+    if law == LAW_CG:
+        return cg_pair_s(s, R12, amplitude, m, q_reg, cutoff)
+    return penalty_pair_s(s, R12, amplitude)
+
+
+@njit
+def pair_reach(law, R12, cutoff):
+    """The centre-line distance at and beyond which a pair contributes nothing: the
+    cutoff of eq. (9), R1 + R2 for the penalty (eq. 3 acts on overlaps only)."""
+    return cutoff if law == LAW_CG else R12
+
+
+@njit
+def obstacle_law(law, q, R, amplitude, w, m, q_reg, cutoff):
+    """(e, de/dq, d2e/dq2) of one contact point at gap q from an obstacle (eq. 9's
+    section-to-half-space counterpart, or eq. 3 with weight 1)."""
+    if law == LAW_CG:
+        return cg_obstacle(q, R, amplitude, w, m, q_reg, cutoff)
+    return penalty_obstacle(q, amplitude)
+
+
+@njit
+def _points(R, X, out):
+    """out[i] = R_i X: the contact points of an element, (n_s, 2)."""
+    for i in range(R.shape[0]):
+        x = 0.0
+        y = 0.0
+        for a in range(X.shape[0]):
+            x += R[i, a] * X[a, 0]
+            y += R[i, a] * X[a, 1]
+        out[i, 0] = x
+        out[i, 1] = y
+
+
+@njit
+def _box_gap2(px, py, lo_x, lo_y, hi_x, hi_y):
+    """Squared distance from (px, py) to a box: a lower bound of the squared distance to
+    every point in it, in floating point too (rounding is monotone)."""
+    dx = max(lo_x - px, 0.0, px - hi_x)
+    dy = max(lo_y - py, 0.0, py - hi_y)
+    return dx * dx + dy * dy
+
+
+@njit
+def _add_diagonal_block(k, o, Ri, sxx, sxy, syy):
+    """k[o + 2a + c, o + 2b + e] += Ri_a Ri_b S_ce, S = [[sxx, sxy], [sxy, syy]]."""
+    n = Ri.shape[0]
+    for a in range(n):
+        ra = Ri[a]
+        if ra == 0.0:  # padding entries of the basis rows carry nothing
+            continue
+        for b in range(n):
+            c = ra * Ri[b]
+            k[o + 2 * a, o + 2 * b] += c * sxx
+            k[o + 2 * a, o + 2 * b + 1] += c * sxy
+            k[o + 2 * a + 1, o + 2 * b] += c * sxy
+            k[o + 2 * a + 1, o + 2 * b + 1] += c * syy
+
+
+@njit
+def _add_coupling_row(k, o, Ri, R2, cols, h, count):
+    """The coupling block of one point i of element 1: k[2a + c, o + 2b + e] -=
+    Ri_a sum_j H_ij^ce R2_jb over its ``count`` interacting points j = cols[:count], whose
+    pair Hessians (xx, xy, yy) are h[:count]."""
+    for b in range(R2.shape[1]):
+        # the sums over j in registers: accumulating into an array per pair costs more
+        txx = txy = tyy = 0.0
+        for jj in range(count):
+            c = R2[cols[jj], b]
+            txx += h[jj, 0] * c
+            txy += h[jj, 1] * c
+            tyy += h[jj, 2] * c
+        for a in range(Ri.shape[0]):
+            ra = Ri[a]
+            k[2 * a, o + 2 * b] -= ra * txx
+            k[2 * a, o + 2 * b + 1] -= ra * txy
+            k[2 * a + 1, o + 2 * b] -= ra * txy
+            k[2 * a + 1, o + 2 * b + 1] -= ra * tyy
+
+
+@njit
+def _bounding_box(p):
+    """(lo_x, lo_y, hi_x, hi_y) of points p (n, 2)."""
+    lo_x, lo_y, hi_x, hi_y = math.inf, math.inf, -math.inf, -math.inf
+    for j in range(p.shape[0]):
+        lo_x, hi_x = min(lo_x, p[j, 0]), max(hi_x, p[j, 0])
+        lo_y, hi_y = min(lo_y, p[j, 1]), max(hi_y, p[j, 1])
+    return lo_x, lo_y, hi_x, hi_y
+
+
+@njit
+def _row_pairs(law, px, py, p2, Wi, reach2, R12, amplitude, m, q_reg, cutoff, sums2, cols,
+               h):
+    """The pairs of one point (px, py) of element 1 with the points p2 of element 2,
+    weights Wi: adds each pair's gradient and Hessian (gx, gy, hxx, hxy, hyy) to sums2[j]
+    and records the interacting j in cols and their Hessians in h. Returns (energy, the
+    sums of (gx, gy, hxx, hxy, hyy) over j, the number of interacting j)."""
+    energy = gx1 = gy1 = hxx1 = hxy1 = hyy1 = 0.0
+    count = 0
+    for j in range(p2.shape[0]):
+        w = Wi[j]
+        if w == 0.0:
+            continue
+        rx, ry = px - p2[j, 0], py - p2[j, 1]
+        s = rx * rx + ry * ry
+        if s >= reach2:
+            continue
+        phi, d1, d2 = pair_law_s(law, s, R12, amplitude, m, q_reg, cutoff)
+        energy += w * phi
+        A, B = 2.0 * w * d1, 4.0 * w * d2  # pair gradient A r, Hessian A I + B r r^T
+        gx, gy = A * rx, A * ry
+        hxx, hxy, hyy = A + B * rx * rx, B * rx * ry, A + B * ry * ry
+        gx1 += gx
+        gy1 += gy
+        hxx1 += hxx
+        hxy1 += hxy
+        hyy1 += hyy
+        sums2[j, 0] += gx
+        sums2[j, 1] += gy
+        sums2[j, 2] += hxx
+        sums2[j, 3] += hxy
+        sums2[j, 4] += hyy
+        cols[count] = j
+        h[count, 0] = hxx
+        h[count, 1] = hxy
+        h[count, 2] = hyy
+        count += 1
+    return energy, gx1, gy1, hxx1, hxy1, hyy1, count
+
+
+@njit
+def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k):
+    """Energy of one element pair; its gradient into f (2 (n1 + n2),) and Hessian into k
+    (square), both overwritten, in the layout of the module docstring.
+
+    Args:
+        law: LAW_CG (eq. 9) or LAW_PENALTY (eq. 3).
+        X1, X2: control points of the two elements, (n1, 2) and (n2, 2).
+        R1, R2: basis rows of their contact points, (n_s1, n1) and (n_s2, n2).
+        W: weights of the point pairs (n_s1, n_s2): w1_i w2_j for the coarse-grained law,
+            the selection weights for IPIP; pairs of weight 0 are skipped.
+        R12: R1 + R2 of the two beams.
+        amplitude: the law's amplitude of the pair of beams (``law.amplitude``).
+        m, q_reg, cutoff: the coarse-grained exponent, regularisation gap and cutoff
+            (unused by the penalty).
+    """
+    o = 2 * X1.shape[0]
+    ns2 = R2.shape[0]
+    f[:] = 0.0
+    k[:, :] = 0.0
+    p1 = np.empty((R1.shape[0], 2))
+    p2 = np.empty((ns2, 2))
+    _points(R1, X1, p1)
+    _points(R2, X2, p2)
+    lo_x, lo_y, hi_x, hi_y = _bounding_box(p2)
+    reach = pair_reach(law, R12, cutoff)
+    reach2 = reach * reach * _REACH_MARGIN
+    # per point j of element 2: the sums over i of (gx, gy, hxx, hxy, hyy)
+    sums2 = np.zeros((ns2, 5))
+    active2 = np.zeros(ns2, dtype=np.bool_)
+    cols = np.empty(ns2, dtype=np.int64)
+    h = np.empty((ns2, 3))
+    energy = 0.0
+    for i in range(R1.shape[0]):
+        px, py = p1[i, 0], p1[i, 1]
+        if _box_gap2(px, py, lo_x, lo_y, hi_x, hi_y) >= reach2:
+            continue  # the whole row is beyond the reach
+        e, gx, gy, hxx, hxy, hyy, count = _row_pairs(law, px, py, p2, W[i], reach2, R12,
+                                                     amplitude, m, q_reg, cutoff, sums2,
+                                                     cols, h)
+        if count == 0:
+            continue
+        energy += e
+        for jj in range(count):
+            active2[cols[jj]] = True
+        for a in range(X1.shape[0]):
+            f[2 * a] += R1[i, a] * gx
+            f[2 * a + 1] += R1[i, a] * gy
+        _add_diagonal_block(k, 0, R1[i], hxx, hxy, hyy)
+        _add_coupling_row(k, o, R1[i], R2, cols, h, count)
+    _add_second_element(f, k, o, R2, sums2, active2)
+    for a in range(o):  # the lower coupling block is the transpose of the upper one
+        for b in range(o, k.shape[0]):
+            k[b, a] = k[a, b]
+    return energy
+
+
+@njit
+def _add_second_element(f, k, o, R2, sums2, active2):
+    """Element 2's gradient -sum_j R2_j g_j and diagonal block sum_j R2_j R2_j^T H_j, from
+    the per-point sums (gx, gy, hxx, hxy, hyy) over the pairs of its ``active2`` points."""
+    for j in range(R2.shape[0]):
+        if not active2[j]:
+            continue
+        for b in range(R2.shape[1]):
+            f[o + 2 * b] -= R2[j, b] * sums2[j, 0]
+            f[o + 2 * b + 1] -= R2[j, b] * sums2[j, 1]
+        _add_diagonal_block(k, o, R2[j], sums2[j, 2], sums2[j, 3], sums2[j, 4])
+
+
+@njit
+def block_forces(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff):
+    """(energy, gradient, Hessian) of one element pair, freshly allocated (see
+    :func:`block_into`)."""
+    size = 2 * (X1.shape[0] + X2.shape[0])
+    f = np.empty(size)
+    k = np.empty((size, size))
+    energy = block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k)
+    return energy, f, k
+
+
+@njit
+def signed_distance(px, py, circle, point, normal, radius):
+    """(s, ds/dx, ds/dy, d2s/dx2, d2s/dxdy, d2s/dy2) of the obstacle's signed distance at
+    p: n . (p - p0) for a wall, |p - c| - r for a circle
+    (:func:`beamcontact.contact.obstacles.signed_distance`)."""
+    rx, ry = px - point[0], py - point[1]
+    if not circle:
+        return rx * normal[0] + ry * normal[1], normal[0], normal[1], 0.0, 0.0, 0.0
+    r2 = rx * rx + ry * ry
+    if not r2 > 1e-300:
+        # obstacles.signed_distance's floor (a point at the centre is deep inside anyway):
+        # constant below it, so JAX AD gives no derivatives there, nor does this
+        return math.sqrt(1e-300) - radius, 0.0, 0.0, 0.0, 0.0, 0.0
+    r = math.sqrt(r2)
+    ux, uy = rx / r, ry / r
+    return r - radius, ux, uy, (1.0 - ux * ux) / r, -ux * uy / r, (1.0 - uy * uy) / r
+
+
+@njit
+def obstacle_into(law, X, R, w, radius, circle, point, normal, obstacle_radius, amplitude, m,
+                  q_reg, cutoff, f, k):
+    """Energy of one element against one rigid obstacle; its gradient into f (2 n,) and
+    Hessian into k (2 n, 2 n), both overwritten, in the order of X.ravel().
+
+    Args:
+        law: LAW_CG or LAW_PENALTY.
+        X: control points (n, 2); R: basis rows of the contact points (n_s, n);
+            w: their arc-length weights (n_s,); radius: the beam's radius R.
+        circle, point, normal, obstacle_radius: the obstacle (``Obstacles`` fields: a
+            wall's point and unit normal, or a circle's centre and radius).
+        amplitude: ``law.obstacle_amplitude`` of the beam and obstacle.
+        m, q_reg, cutoff: the coarse-grained parameters (unused by the penalty).
+    """
+    n = X.shape[0]
+    f[:] = 0.0
+    k[:, :] = 0.0
+    energy = 0.0
+    for i in range(R.shape[0]):
+        px = py = 0.0
+        for a in range(n):
+            px += R[i, a] * X[a, 0]
+            py += R[i, a] * X[a, 1]
+        sd, nx, ny, sxx, sxy, syy = signed_distance(px, py, circle, point, normal,
+                                                    obstacle_radius)
+        e, d1, d2 = obstacle_law(law, sd - radius, radius, amplitude, w[i], m, q_reg, cutoff)
+        if e == 0.0 and d1 == 0.0 and d2 == 0.0:
+            continue  # beyond the law's reach
+        energy += e
+        # chain rule through s(p): H = e'' grad s grad s^T + e' Hess s
+        for a in range(n):
+            f[2 * a] += R[i, a] * d1 * nx
+            f[2 * a + 1] += R[i, a] * d1 * ny
+        _add_diagonal_block(k, 0, R[i], d2 * nx * nx + d1 * sxx, d2 * nx * ny + d1 * sxy,
+                            d2 * ny * ny + d1 * syy)
+    return energy
+
+
+@njit
+def obstacle_forces(law, X, R, w, radius, circle, point, normal, obstacle_radius, amplitude,
+                    m, q_reg, cutoff):
+    """(energy, gradient, Hessian) of one element against one obstacle, freshly allocated
+    (see :func:`obstacle_into`)."""
+    f = np.empty(2 * X.shape[0])
+    k = np.empty((2 * X.shape[0], 2 * X.shape[0]))
+    energy = obstacle_into(law, X, R, w, radius, circle, point, normal, obstacle_radius,
+                           amplitude, m, q_reg, cutoff, f, k)
+    return energy, f, k
