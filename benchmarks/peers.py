@@ -25,6 +25,7 @@ first code of the table.
 
     pip install ".[peers]"                      # PyElastica and Exudyn
     python benchmarks/peers.py [--cases drop stiff bundled scaling] [--repeat 3]
+                               [--engines native jax]
 
 A full run takes 15-25 minutes here (the bundled benchmark alone about 6 minutes per run
 today). Numbers and machine: benchmarks/README.md.
@@ -111,13 +112,15 @@ def beamcontact_run(case: Path | None, out: Path, label: str, env: dict | None =
             "compile": summary.get("compile_time_s", 0.0)}
 
 
-def _drop_case_file(model: str, t_end: float, E: float, folder: Path) -> Path:
+def _drop_case_file(model: str, t_end: float, E: float, folder: Path,
+                    engine: str = "auto") -> Path:
     import tomli_w
     from compare import drop_case
 
     case = drop_case(model, t_end=t_end, E=E)
     case["output"]["vtk_interval"] = t_end / 100  # the default cadence
-    path = folder / f"drop_{model}_E{E:g}.toml"
+    case.setdefault("solver", {})["engine"] = engine
+    path = folder / f"drop_{model}_E{E:g}_{engine}.toml"
     path.write_text(tomli_w.dumps(case))
     return path
 
@@ -152,10 +155,12 @@ def case_drop(tmp: Path, args, E: float = 1.0e7, t_end: float = 2.0, stiff: bool
         rows.append(largest_stable(args.pyelastica_dt_large, t_end, tmp / "pe_large.csv", E))
     if not stiff:
         rows.append(exudyn(1e-3, t_end, tmp / f"ex_{E:g}.csv", E))
-    for model in args.models:
-        case = _drop_case_file(model, t_end, E, tmp)
-        beamcontact_run(case, tmp / f"warm_{model}", "warm-up")
-        rows.append(beamcontact_run(case, tmp / f"bc_{model}_{E:g}", f"beamcontact {model}"))
+    for engine in args.engines:
+        for model in args.models:
+            case = _drop_case_file(model, t_end, E, tmp, engine)
+            beamcontact_run(case, tmp / f"warm_{model}_{engine}", "warm-up")
+            rows.append(beamcontact_run(case, tmp / f"bc_{model}_{E:g}_{engine}",
+                                        f"beamcontact {model} ({engine})"))
     _table(f"{'stiff drop (E = 1e9 Pa), 0.5 s' if stiff else 'peer drop (E = 1e7 Pa), 2 s'}"
            " simulated", rows, t_end)
 
@@ -198,6 +203,9 @@ CASES = {"drop": case_drop, "stiff": lambda tmp, a: case_drop(tmp, a, 1.0e9, 0.5
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", choices=list(CASES), default=list(CASES))
+    ap.add_argument("--engines", nargs="+", default=["auto"],
+                    choices=["auto", "native", "jax"],
+                    help="beamcontact engines (solver.engine) of the drop cases")
     ap.add_argument("--models", nargs="+", default=["ipip-points", "cg"],
                     choices=["cg", "ipip", "ipip-points"], help="beamcontact contact models")
     ap.add_argument("--pyelastica-dt-large", type=float, default=4e-4,

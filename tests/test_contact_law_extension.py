@@ -83,6 +83,9 @@ def test_a_new_law_runs_through_the_whole_solver(tmp_path, monkeypatch):
                                  {"name": "B", "beam": "b", "at": 0.5}]}}
     summary = run_case(parse_case(raw), "", tmp_path)
     assert summary["status"] == "completed", summary["message"]
+    # a law without a native kernel runs on the JAX engine, and the summary says why
+    assert summary["solver"]["engine_used"] == "jax"
+    assert "LennardJones" in summary["solver"]["engine_reason"]
     h = np.genfromtxt(tmp_path / "history.csv", delimiter=",", names=True)
     gap = h["B_y"] - h["A_y"] - 2 * R
     assert gap[0] == pytest.approx(GAP0)

@@ -117,7 +117,7 @@ def test_impact_with_sparse_tangent_equals_dense(tmp_path, law):
     for kind in ("dense", "sparse"):
         raw = _free_collision(law)
         raw["analysis"]["t_end"] = 0.1
-        raw["solver"] = {"linear_solver": kind}
+        raw["solver"] = {"linear_solver": kind, "engine": "jax"}  # the JAX engine's choice
         summary = run_case(parse_case(raw), "", tmp_path / kind)
         assert summary["status"] == "completed", summary["message"]
         assert summary["solver"]["linear_solver_used"] == kind

@@ -31,7 +31,13 @@ from beamcontact.io.results import read_last_state, write_summary
 from beamcontact.progress import Progress, ProgressInfo
 from beamcontact.record import RunRecord
 from beamcontact.setup.contact import obstacle_names
-from beamcontact.setup.start import Prepared, dynamic_start, prepare, static_engine
+from beamcontact.setup.start import (
+    Prepared,
+    choose_engine,
+    dynamic_start,
+    prepare,
+    static_engine,
+)
 from beamcontact.statics.driver import StaticStep, solve_static
 from beamcontact.summary import contact_summary, effective_settings, set_change_warning
 
@@ -120,13 +126,24 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     summary["warnings"] = [w for w in warnings if w is not None]
     summary.update({"title": case.title, "kind": case.analysis.kind,
                     "solver": {**effective_settings(case),
-                               "linear_solver_used": "sparse" if model.sparse else "dense"},
+                               **_engine_used(case, model, contact)},
                     "wall_time_s": time.perf_counter() - wall0, "n_dof": model.n_dof,
                     "n_elements": sum(b.mesh.n_elements for b in disc.beams),
                     "beamcontact_version": __version__})
     if out_dir is not None:
         write_summary(out_dir / "summary.json", summary)
     return summary, record
+
+
+def _engine_used(case: Case, model: Model, contact) -> dict:
+    """The engine that ran the case and why; the linear solver it used."""
+    name, why = choose_engine(case, None if contact is None else contact.law)
+    used = {"engine_used": name, "engine_reason": why}
+    if name == "jax":
+        used["linear_solver_used"] = "sparse" if model.sparse else "dense"
+    else:
+        used["linear_solver_used"] = "bordered banded"
+    return used
 
 
 # an initial interpenetration deeper than this fraction of the smallest radius is an input

@@ -183,7 +183,7 @@ def element_strain_residual_tangent(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, 
     of :func:`~beamcontact.beam.energy.element_strain_energy` (eq. 30 with the Gauss
     points of the element), written into r_out and k_out; returns the strain energy.
 
-    Args:
+    Arguments, in call order:
         x_e: control points (n, 2).
         dR, ddR: basis derivatives at the Gauss points (n_qp, n).
         wq, g_ref, K_ref: Gauss weights, reference metric and curvature (n_qp,).

@@ -186,7 +186,7 @@ def element_inertia_residual_tangent(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, d
     33-36) into r_out (2n,) and k_out (2n, 2n), as
     :func:`~beamcontact.assembly.inertia.inertia_residual_tangent` forms them.
 
-    Args:
+    Arguments, in call order:
         u_e, un_e, vn_e, an_e: displacement now and u, v, a of the last step (n, 2).
         xref_e: reference control points (n, 2); x = xref + u.
         coeffs: (c_a, dt, c_1, gamma) of the Newmark kinematics.

@@ -177,7 +177,7 @@ def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k):
     """Energy of one element pair; its gradient into f (2 (n1 + n2),) and Hessian into k
     (square), both overwritten, in the layout of the module docstring.
 
-    Args:
+    Arguments, in call order:
         law: LAW_CG (eq. 9) or LAW_PENALTY (eq. 3).
         X1, X2: control points of the two elements, (n1, 2) and (n2, 2).
         R1, R2: basis rows of their contact points, (n_s1, n1) and (n_s2, n2).
@@ -277,7 +277,7 @@ def obstacle_into(law, X, R, w, radius, circle, point, normal, obstacle_radius, 
     """Energy of one element against one rigid obstacle; its gradient into f (2 n,) and
     Hessian into k (2 n, 2 n), both overwritten, in the order of X.ravel().
 
-    Args:
+    Arguments, in call order:
         law: LAW_CG or LAW_PENALTY.
         X: control points (n, 2); R: basis rows of the contact points (n_s, n);
             w: their arc-length weights (n_s,); radius: the beam's radius R.

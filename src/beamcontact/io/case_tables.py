@@ -355,7 +355,11 @@ class Solver(_Strict):
     (0: no check). linear_solver: how Newton's linear systems are solved, "dense" (one
     n x n matrix, LU on the device), "sparse" (the local blocks kept as triplets, banded
     or sparse LU on the host; cost linear in the number of dofs) or "auto" (sparse on CPU
-    from 300 dofs on, else dense).
+    from 300 dofs on, else dense; the jax engine's choice). engine: which engine runs the
+    steps (docs/architecture.md, "Engines"): "native" (compiled for the CPU, Numba),
+    "jax" (differentiable, GPUs) or "auto" (native where every term of the case has a
+    native kernel and no GPU is installed, else jax; summary.json's ``solver`` says which
+    ran and why).
     """
 
     max_iterations: Annotated[int, Field(ge=1, le=500)] = 25
@@ -365,6 +369,7 @@ class Solver(_Strict):
     error_tol: Annotated[float, Field(ge=0.0, lt=1.0)] = 2.5e-6
     energy_tol: Annotated[float, Field(ge=0.0)] = 2.5e-4
     linear_solver: Literal["auto", "dense", "sparse"] = "auto"
+    engine: Literal["auto", "native", "jax"] = "auto"
 
 
 class OutputPoint(_Strict):

@@ -10,6 +10,8 @@ settings and the consistent state at t = 0 (paper Sec. 4: M a0 = f(u0)).
 
 from dataclasses import dataclass
 
+from beamcontact.contact.broadphase import ALL_PAIRS_LIMIT
+from beamcontact.contact.laws import CoarseGrained, Penalty
 from beamcontact.contact.problem import ContactProblem
 from beamcontact.io.case import Case, CaseError
 from beamcontact.setup.contact import build_contact
@@ -68,10 +70,10 @@ def static_engine(prepared: Prepared):
 
 
 def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
-    """The engine, the step control and the state at t = 0 of a dynamic case: zero
-    displacements, the beams' initial velocities, consistent accelerations under the
-    contact set of the reference configuration (``initial`` False: no state, for a run
-    that continues a saved one)."""
+    """The engine (:func:`choose_engine`), the step control and the state at t = 0 of a
+    dynamic case: zero displacements, the beams' initial velocities, consistent
+    accelerations under the contact set of the reference configuration (``initial``
+    False: no state, for a run that continues a saved one)."""
     import jax.numpy as jnp
 
     from beamcontact.assembly.model import initial_load_state
@@ -90,7 +92,16 @@ def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
         cs0 = None if contact is None else contact.grown_set(
             model.x_ref, 0.0, contact.first_capacity(case.contact.capacity))[0]
         state = initial_state(u0, v0, model, initial_load_state(model), freeze(contact, cs0))
-    engine = JaxEngine(model, contact, an.alpha, prepared.options, prepared.length, an.dt)
+    name, _ = choose_engine(case, None if contact is None else contact.law)
+    if name == "native":
+        from beamcontact.dynamics.native_step import NativeEngine
+
+        engine = NativeEngine(model, an.alpha, prepared.options, prepared.length, an.dt,
+                              contact)
+        state = None if state is None else engine.host_state(state)
+    else:
+        engine = JaxEngine(model, contact, an.alpha, prepared.options, prepared.length,
+                           an.dt)
     return DynamicStart(prepared, engine, step_control(case), state, cs0)
 
 
@@ -101,3 +112,57 @@ def step_control(case: Case):
 
     an, so = case.analysis, case.solver
     return StepControl(an.dt, an.smallest_step, so.error_tol, so.energy_tol, so.max_cutbacks)
+
+
+def native_unsupported(case: Case, law=None) -> str | None:
+    """What of ``case`` (with its contact law object ``law``, when built) has no native
+    kernel yet (None: the native engine runs it all)."""
+    if case.analysis.kind != "dynamic":
+        return "load stepping (analysis.kind = \"static\")"
+    if case.contact.model == "none":
+        return None
+    if law is not None and type(law) not in _NATIVE_LAWS:
+        return f"the contact law {type(law).__name__} (no native kernel)"
+    if case.contact.self_contact:
+        return "self-contact (contact.self_contact = true)"
+    if case.obstacles:
+        return "rigid obstacles ([[obstacles]])"
+    elements = sum(b.elements for b in case.beams)
+    if elements > ALL_PAIRS_LIMIT:
+        return (f"contact between more than {ALL_PAIRS_LIMIT} elements ({elements}; the grid "
+                f"broad phase)")
+    return None
+
+
+# the contact laws with native kernels (contact/laws/*_native.py); a law of another class,
+# a user's own, runs on the JAX engine
+_NATIVE_LAWS = (CoarseGrained, Penalty)
+
+
+def _gpu_installed() -> bool:
+    """Whether a GPU plugin of JAX is installed (found without importing JAX)."""
+    from importlib.util import find_spec
+
+    return any(find_spec(name) is not None
+               for name in ("jax_cuda12_plugin", "jax_cuda13_plugin", "jax_rocm60_plugin"))
+
+
+def choose_engine(case: Case, law=None) -> tuple[str, str]:
+    """The engine that runs ``case`` (with its contact law object ``law``, when built)
+    and why (``solver.engine``; docs/architecture.md, "Engines"); "native" asked for a
+    case it cannot run is a CaseError."""
+    asked = case.solver.engine
+    lacking = native_unsupported(case, law)
+    if asked == "jax":
+        return "jax", "asked for (solver.engine = \"jax\")"
+    if asked == "native":
+        if lacking is not None:
+            raise CaseError(f"solver.engine: the native engine cannot run {lacking} yet; "
+                            f"use \"auto\" or \"jax\"")
+        return "native", "asked for (solver.engine = \"native\")"
+    if lacking is not None:
+        return "jax", f"the native engine cannot run {lacking} yet"
+    if _gpu_installed():
+        return "jax", "a GPU plugin of JAX is installed"
+    return "native", "every term of the case has a native kernel"
+

@@ -1,0 +1,601 @@
+"""Native (Numba) twin of the contact set of one time step (:mod:`beamcontact.contact.step_set`)
+for models on the all-pairs broad phase (at most ``ALL_PAIRS_LIMIT`` = 64 elements).
+
+The JAX functions stay the definition; these compute the same numbers (to round-off, the
+selections exactly; tests/test_step_set_native.py):
+
+* the broad phase: element boxes of the control points grown by a margin, every element
+  pair (i < j) whose boxes overlap and that may touch
+  (:func:`~beamcontact.contact.broadphase.all_pair_candidates`,
+  :meth:`~beamcontact.contact.points.ContactElements.may_touch`), in the same sorted order;
+* integrated laws (coarse-grained): the candidates culled to the blocks with a point pair
+  closer than interaction + 2 motion (:func:`~beamcontact.contact.problem.near_candidates`);
+* IPIP "points": the gaps of every point pair of the candidates and the closest-point
+  weights of :func:`~beamcontact.contact.select.point_weights_on_device` (each point of
+  either beam with its closest point on the other beam among all candidate blocks, 1/2
+  from each side, ties within rtol sharing), blocks with a weight first
+  (:func:`~beamcontact.contact.step_set._closest_points`);
+* conservative advancement (:func:`~beamcontact.contact.advance.approach_ratio`), for the
+  predictor's two displacement fields and for the actual displacement;
+* the post-step check (:func:`~beamcontact.contact.problem.missed_blocks`, with
+  :func:`~beamcontact.contact.broadphase.box_gap_lower_bound`);
+* the arc-length weights W_ij = w1_i w2_j of a coarse-grained block
+  (:func:`~beamcontact.contact.blocks.arc_length_weights`).
+
+Where the JAX lists have a fixed capacity padded with the sentinel element E, these return
+plain arrays of the real entries: element pairs are int64 (n_pairs, 2), sorted by
+(e1, e2) with e1 < e2 as the JAX list, so nothing overflows and there is no count/load to
+check (the number of box candidates is still returned where the JAX function returns it;
+the fullest-cell load of the all-pairs path is always 0). Arithmetic follows the JAX
+expressions operation by operation (the same sums in the same order); XLA contracts some
+a * b + c into fused multiply-adds, Numba without fastmath does not, so the gaps agree to
+the last bit or two (a few 1e-16), far inside the tie tolerance RTOL, and the comparisons
+of the selections (d < limit, ties within rtol, nearest < q_active) fall the same way
+unless a gap lies within round-off of such a threshold.
+
+Self-contact (a beam allowed to touch itself) follows from the same formulas
+(:meth:`ContactElements.may_touch`, ``point_mask``, the two-sided segment minima; tested
+on a ring closing on itself) although the engine this serves has none; obstacles
+(``obstacle_gaps``, ``obstacle_approach_ratio``) and the deviation test of ``after_step``
+(|x_new - x_pred| > motion + 1e-6 reach) are not part of this module.
+
+Importing this module imports neither JAX nor matplotlib.
+"""
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from beamcontact._native import njit
+
+# the tie rule of point_weights_on_device: two gaps are equal within RTOL max(1, |q|)
+RTOL = 1e-9
+# the JAX element_boxes masks the padding control points with the largest float, not inf
+_BIG = float(np.finfo(np.float64).max)
+
+
+class NativeContactElements(NamedTuple):
+    """:class:`~beamcontact.contact.points.ContactElements` as flat host arrays (E elements of
+    all beams, n_s contact points per element, n_loc padded local control points, B beams).
+
+    Attributes:
+        conn: (E, n_loc) int64 global control points of each element (padding: 0).
+        loc_valid: (E, n_loc) bool, the real local control points.
+        R: (E, n_s, n_loc) basis rows of the contact points (padding columns 0).
+        w: (E, n_s) reference arc-length weights of the points.
+        s: (E, n_s) reference arc-length positions of the points along their beam.
+        radius, beta: (E,) radius and density of each element's beam.
+        beam: (E,) int64 beam of each element.
+        allowed: (B, B) bool, which beams interact (the diagonal: self-contact).
+        exclusion: the smallest arc-length distance of two interacting points of one beam.
+        n_beams: B.
+    """
+
+    conn: np.ndarray
+    loc_valid: np.ndarray
+    R: np.ndarray
+    w: np.ndarray
+    s: np.ndarray
+    radius: np.ndarray
+    beta: np.ndarray
+    beam: np.ndarray
+    allowed: np.ndarray
+    exclusion: float
+    n_beams: int
+
+
+def native_contact_elements(ce) -> NativeContactElements:
+    """The flat host arrays of a :class:`~beamcontact.contact.points.ContactElements`
+    (JAX or NumPy fields; C-contiguous copies, float64 / int64 / bool)."""
+
+    def f64(a):
+        return np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+
+    def i64(a):
+        return np.ascontiguousarray(np.asarray(a, dtype=np.int64))
+
+    def flag(a):
+        return np.ascontiguousarray(np.asarray(a, dtype=np.bool_))
+
+    return NativeContactElements(
+        conn=i64(ce.conn), loc_valid=flag(ce.loc_valid), R=f64(ce.R), w=f64(ce.w),
+        s=f64(ce.s), radius=f64(ce.radius), beta=f64(ce.beta), beam=i64(ce.beam),
+        allowed=flag(ce.allowed), exclusion=float(ce.exclusion), n_beams=int(ce.n_beams))
+
+
+# A note on speed: a compiled call that takes the NamedTuple pays the reference counts of
+# all its arrays (about 0.1 us here), so the loops unpack it once and call helpers that take
+# plain arrays (inlined by LLVM, free); only the public functions take it.
+
+# ------------------------------------------------------------------------- which pairs
+
+
+@njit
+def _may_touch(beam, allowed, s, exclusion, e1, e2):
+    """:func:`may_touch` on the arrays of the elements."""
+    b1, b2 = beam[e1], beam[e2]
+    if not allowed[b1, b2]:
+        return False
+    if b1 != b2:
+        return True
+    last = s.shape[1] - 1
+    spread = max(s[e2, last] - s[e1, 0], s[e1, last] - s[e2, 0])
+    return e1 != e2 and spread >= exclusion
+
+
+@njit
+def _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j):
+    """:func:`point_may_touch` on the arrays of the elements."""
+    b1, b2 = beam[e1], beam[e2]
+    if not allowed[b1, b2]:
+        return False
+    return b1 != b2 or abs(s[e1, i] - s[e2, j]) >= exclusion
+
+
+@njit
+def may_touch(ne, e1, e2):
+    """Whether elements e1, e2 hold a pair of points that may interact
+    (:meth:`ContactElements.may_touch`): their beams interact and, on one beam, they are
+    different elements with two points at least ``exclusion`` apart along it."""
+    return _may_touch(ne.beam, ne.allowed, ne.s, ne.exclusion, e1, e2)
+
+
+@njit
+def point_may_touch(ne, e1, e2, i, j):
+    """Whether point i of element e1 and point j of element e2 may interact
+    (:meth:`ContactElements.point_mask`; :func:`blocks.point_mask` of a real block)."""
+    return _point_may_touch(ne.beam, ne.allowed, ne.s, ne.exclusion, e1, e2, i, j)
+
+
+# ------------------------------------------------------------------------- broad phase
+
+
+@njit
+def _boxes(x, conn, loc_valid, margin):
+    """:func:`element_boxes` on the arrays of the elements."""
+    E, n_loc = conn.shape
+    lo = np.empty((E, 2))
+    hi = np.empty((E, 2))
+    for e in range(E):
+        for d in range(2):
+            a, b = _BIG, -_BIG
+            for k in range(n_loc):
+                if loc_valid[e, k]:
+                    v = x[conn[e, k], d]
+                    a = min(a, v)
+                    b = max(b, v)
+            lo[e, d] = a - margin
+            hi[e, d] = b + margin
+    return lo, hi
+
+
+@njit
+def element_boxes(x, ne, margin):
+    """Lower and upper corners (E, 2) each of every element's box of its (real) control
+    points at x (n_cp, 2), grown by ``margin`` (:func:`broadphase.element_boxes`)."""
+    return _boxes(x, ne.conn, ne.loc_valid, margin)
+
+
+@njit
+def candidate_pairs(x, ne, margin):
+    """Candidate element pairs (P, 2) int64 at control points x (n_cp, 2), boxes grown by
+    ``margin``: the pairs (i, j), i < j, whose grown boxes overlap and that may touch,
+    sorted by (i, j) (:func:`broadphase.all_pair_candidates`: its first ``count`` rows;
+    P is its count, its load is 0).
+
+    The test of every pair costs E (E - 1) / 2 box comparisons: the JAX twin takes this
+    path up to ALL_PAIRS_LIMIT = 64 elements (its grid path gives the same list above)."""
+    beam, allowed, s, exclusion = ne.beam, ne.allowed, ne.s, ne.exclusion
+    E = ne.conn.shape[0]
+    lo, hi = _boxes(x, ne.conn, ne.loc_valid, margin)
+    out = np.empty((max(E * (E - 1) // 2, 0), 2), dtype=np.int64)
+    n = 0
+    for i in range(E):
+        for j in range(i + 1, E):
+            if (lo[i, 0] <= hi[j, 0] and lo[j, 0] <= hi[i, 0] and lo[i, 1] <= hi[j, 1]
+                    and lo[j, 1] <= hi[i, 1] and _may_touch(beam, allowed, s, exclusion, i, j)):
+                out[n, 0] = i
+                out[n, 1] = j
+                n += 1
+    return out[:n].copy()
+
+
+@njit
+def box_gap_lower_bound(x, ne, reach):
+    """A lower bound of the surface gap of every pair of points that may interact, for a
+    configuration whose search with boxes grown by ``reach`` found no candidate
+    (:func:`broadphase.box_gap_lower_bound`, its path of at most ELEMENT_BOUND_LIMIT
+    elements): the smallest distance of two element boxes that may touch less both radii,
+    and at least 2 reach - 2 R_max."""
+    beam, allowed, s, exclusion, radius = ne.beam, ne.allowed, ne.s, ne.exclusion, ne.radius
+    E = ne.conn.shape[0]
+    lo, hi = _boxes(x, ne.conn, ne.loc_valid, 0.0)
+    near = math.inf
+    for a in range(E):
+        for b in range(E):
+            if not _may_touch(beam, allowed, s, exclusion, a, b):
+                continue
+            sx = max(max(lo[a, 0] - hi[b, 0], lo[b, 0] - hi[a, 0]), 0.0)
+            sy = max(max(lo[a, 1] - hi[b, 1], lo[b, 1] - hi[a, 1]), 0.0)
+            # (a, b) and (b, a) both: the radii are subtracted in either order there
+            near = min(near, math.sqrt(sx * sx + sy * sy) - radius[a] - radius[b])
+    r_max = -math.inf
+    for e in range(E):
+        r_max = max(r_max, radius[e])
+    return max(near, 2.0 * reach - 2.0 * r_max)
+
+
+# ------------------------------------------------------------------------ point pairs
+
+
+@njit
+def _points_into(field, conn, R, e, out):
+    """out[i] = R_i field[conn_e]: the contact points of element e (n_s, 2), summed over
+    the local control points in order (the einsum of :func:`blocks._block_geometry`)."""
+    for i in range(R.shape[1]):
+        px = 0.0
+        py = 0.0
+        for k in range(conn.shape[1]):
+            c = conn[e, k]
+            px += R[e, i, k] * field[c, 0]
+            py += R[e, i, k] * field[c, 1]
+        out[i, 0] = px
+        out[i, 1] = py
+
+
+@njit
+def _pair_points(field, conn, R, pairs):
+    """The contact points (E, n_s, 2) of the elements that occur in ``pairs`` (the others,
+    and padding indices >= E, are left out) under the control-point field (n_cp, 2)."""
+    E, ns = conn.shape[0], R.shape[1]
+    P = np.empty((E, ns, 2))
+    done = np.zeros(E, dtype=np.bool_)
+    for c in range(pairs.shape[0]):
+        for side in range(2):
+            e = pairs[c, side]
+            if e < E and not done[e]:
+                _points_into(field, conn, R, e, P[e])
+                done[e] = True
+    return P
+
+
+@njit
+def block_distances(x, ne, pairs):
+    """Centre-line distances (P, n_s, n_s) of all point pairs of the blocks ``pairs``
+    (real pairs only) at x, +inf for the pairs that may not interact
+    (:func:`blocks.block_distances`)."""
+    beam, allowed, s, exclusion = ne.beam, ne.allowed, ne.s, ne.exclusion
+    ns = ne.R.shape[1]
+    P = _pair_points(x, ne.conn, ne.R, pairs)
+    # the coordinates apart, so that the loop over j reads contiguous memory
+    px = np.ascontiguousarray(P[:, :, 0])
+    py = np.ascontiguousarray(P[:, :, 1])
+    d = np.empty((pairs.shape[0], ns, ns))
+    for c in range(pairs.shape[0]):
+        e1, e2 = pairs[c, 0], pairs[c, 1]
+        # two beams: every pair may interact, a loop without a branch (vectorised)
+        whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
+        for i in range(ns):
+            x1, y1 = px[e1, i], py[e1, i]
+            for j in range(ns):
+                rx = x1 - px[e2, j]
+                ry = y1 - py[e2, j]
+                d[c, i, j] = math.sqrt(rx * rx + ry * ry)
+            if not whole:
+                for j in range(ns):
+                    if not _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j):
+                        d[c, i, j] = math.inf
+    return d
+
+
+@njit
+def _gaps_from(d, radius, pairs):
+    """q = d - (R1 + R2) of every point pair (:func:`blocks.block_gaps` given d)."""
+    q = np.empty_like(d)
+    for c in range(pairs.shape[0]):
+        r12 = radius[pairs[c, 0]] + radius[pairs[c, 1]]
+        for i in range(d.shape[1]):
+            for j in range(d.shape[2]):
+                q[c, i, j] = d[c, i, j] - r12
+    return q
+
+
+@njit
+def block_gaps(x, ne, pairs):
+    """Surface gaps q = d - R1 - R2 (P, n_s, n_s) of all point pairs of the blocks
+    ``pairs`` at x (+inf for the pairs that may not interact; :func:`blocks.block_gaps`)."""
+    return _gaps_from(block_distances(x, ne, pairs), ne.radius, pairs)
+
+
+@njit
+def arc_length_weights(ne, e1, e2):
+    """W (n_s, n_s) of the block (e1, e2) of an integrated law: w1_i w2_j for the point
+    pairs that may interact, 0 for the rest (:func:`blocks.arc_length_weights`)."""
+    beam, allowed, s, exclusion, w = ne.beam, ne.allowed, ne.s, ne.exclusion, ne.w
+    ns = w.shape[1]
+    W = np.empty((ns, ns))
+    for i in range(ns):
+        for j in range(ns):
+            ok = _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)
+            W[i, j] = w[e1, i] * w[e2, j] if ok else 0.0
+    return W
+
+
+# ---------------------------------------------------------------- integrated laws (CG)
+
+
+@njit
+def near_blocks(x, ne, pairs, limit):
+    """The blocks of ``pairs`` with a point pair closer than ``limit`` (centre-line
+    distance at x), in their original order (:func:`blocks.near_blocks`: its real rows)."""
+    d = block_distances(x, ne, pairs)
+    keep = np.zeros(pairs.shape[0], dtype=np.bool_)
+    for c in range(pairs.shape[0]):
+        # some pair with d < limit: the JAX twin's min(d) < limit
+        keep[c] = np.min(d[c]) < limit
+    return pairs[keep].copy()
+
+
+@njit
+def near_candidates(x, ne, reach, interaction, motion):
+    """The blocks of an integrated law to freeze at the predictor x: box candidates grown
+    by reach + motion culled to those with a point pair closer than
+    interaction + 2 motion (:func:`problem.near_candidates`, the integrated branch of
+    :func:`step_set.step_set`). Returns (pairs (P, 2), number of box candidates)."""
+    pairs = candidate_pairs(x, ne, reach + motion)
+    return near_blocks(x, ne, pairs, interaction + 2.0 * motion), pairs.shape[0]
+
+
+# ------------------------------------------------------------------------ IPIP "points"
+
+
+@njit
+def point_weights(q, pairs, ne, q_active, rtol=RTOL):
+    """The "points" weights W (P, n_s, n_s) of the blocks ``pairs`` (real pairs only) from
+    their gaps q (:func:`select.point_weights_on_device`, the same arithmetic).
+
+    A point is keyed by (its element, its index, the other beam): its nearest gap is the
+    minimum over every candidate block it belongs to, on either side of the block (a point
+    of one beam under self-contact is the first element of some blocks and the second of
+    others). A cell is a tie of a point when q <= nearest + rtol max(1, |q|) and
+    nearest < q_active; the point's 1/2 is shared by its ties over all its blocks."""
+    C, ns = q.shape[0], q.shape[1]
+    B = ne.n_beams
+    beam = ne.beam
+    n_seg = ne.conn.shape[0] * ns * B
+    nearest = np.full(n_seg, np.inf)
+    # per block: the segments of its columns and their running minima / tie counts (the
+    # rows' in registers: the block's row i is one point, its column j another)
+    seg2 = np.empty(ns, dtype=np.int64)
+    col = np.empty(ns)
+    col_count = np.empty(ns, dtype=np.int64)
+    for c in range(C):
+        e1, e2 = pairs[c, 0], pairs[c, 1]
+        b1, b2 = beam[e1], beam[e2]
+        col[:] = np.inf
+        for i in range(ns):
+            row = np.inf
+            for j in range(ns):
+                v = q[c, i, j]
+                row = min(row, v)
+                col[j] = min(col[j], v)
+            s1 = (e1 * ns + i) * B + b2
+            nearest[s1] = min(nearest[s1], row)
+        for j in range(ns):
+            s2 = (e2 * ns + j) * B + b1
+            nearest[s2] = min(nearest[s2], col[j])
+    # the ties of both sides: bit 0 as a row of its block (point i of e1), bit 1 as a column
+    ties = np.zeros((C, ns, ns), dtype=np.int8)
+    count = np.zeros(n_seg, dtype=np.int64)
+    for c in range(C):
+        e1, e2 = pairs[c, 0], pairs[c, 1]
+        b1, b2 = beam[e1], beam[e2]
+        for j in range(ns):
+            seg2[j] = (e2 * ns + j) * B + b1
+            col[j] = nearest[seg2[j]]
+            col_count[j] = 0
+        for i in range(ns):
+            s1 = (e1 * ns + i) * B + b2
+            n1 = nearest[s1]
+            active1 = n1 < q_active
+            row_count = 0
+            for j in range(ns):
+                v = q[c, i, j]
+                if not np.isfinite(v):
+                    continue
+                tol = rtol * max(1.0, abs(v))
+                t = 0
+                if active1 and v <= n1 + tol:
+                    t |= 1
+                    row_count += 1
+                if col[j] < q_active and v <= col[j] + tol:
+                    t |= 2
+                    col_count[j] += 1
+                ties[c, i, j] = t
+            count[s1] += row_count
+        for j in range(ns):
+            count[seg2[j]] += col_count[j]
+    W = np.zeros((C, ns, ns))
+    share = np.empty(ns)
+    for c in range(C):
+        e1, e2 = pairs[c, 0], pairs[c, 1]
+        b1, b2 = beam[e1], beam[e2]
+        for j in range(ns):
+            share[j] = 0.5 / max(count[(e2 * ns + j) * B + b1], 1)
+        for i in range(ns):
+            row_share = 0.5 / max(count[(e1 * ns + i) * B + b2], 1)
+            for j in range(ns):
+                t = ties[c, i, j]
+                if t == 0:
+                    continue
+                # 0 + row share + column share, as the JAX sum (exact in any order)
+                w = 0.0
+                if t & 1:
+                    w += row_share
+                if t & 2:
+                    w += share[j]
+                W[c, i, j] = w
+    return W
+
+
+@njit
+def weighted_first(pairs, W):
+    """The blocks with a nonzero weight first, each group in its original order (the
+    stable argsort of :func:`step_set._closest_points`): (pairs, W) reordered."""
+    C, ns = W.shape[0], W.shape[1]
+    weighted = np.zeros(C, dtype=np.bool_)
+    for c in range(C):
+        for i in range(ns):
+            for j in range(ns):
+                if W[c, i, j] != 0.0:
+                    weighted[c] = True
+    order = np.empty(C, dtype=np.int64)
+    n = 0
+    for c in range(C):
+        if weighted[c]:
+            order[n] = c
+            n += 1
+    for c in range(C):
+        if not weighted[c]:
+            order[n] = c
+            n += 1
+    return pairs[order], W[order]
+
+
+@njit
+def closest_points(x_pred, ne, reach, motion, rtol=RTOL):
+    """The IPIP "points" set of a step at the predictor x_pred
+    (:func:`step_set._closest_points`): box candidates grown by reach + motion, the gaps
+    of their point pairs, the weights of :func:`point_weights` with q_active = 2 motion,
+    blocks with a weight first. Returns (pairs (P, 2), W (P, n_s, n_s), number of box
+    candidates P)."""
+    pairs = candidate_pairs(x_pred, ne, reach + motion)
+    q = block_gaps(x_pred, ne, pairs)
+    W = point_weights(q, pairs, ne, 2.0 * motion, rtol)
+    pairs, W = weighted_first(pairs, W)
+    return pairs, W, pairs.shape[0]
+
+
+# ------------------------------------------------------------- conservative advancement
+
+
+@njit
+def approach_ratio(x0, fields, ne, pairs, slack):
+    """Largest approach_ij / (q_ij + s) over the point pairs of the blocks ``pairs``
+    (:func:`advance.approach_ratio`).
+
+    Args:
+        x0: control points at the start of the step (n_cp, 2).
+        fields: control-point displacement fields (n_fields, n_cp, 2); the approach of a
+            pair is the sum over the fields of max(0, -n . dr) (one field: the actual
+            motion; two: the predictor's h v and h^2 a / 2).
+        slack: s, the distance added to the gap.
+
+    0 when no pair approaches; pairs with room q + s <= s / 100 are left out (in contact).
+    Rows at or beyond E (the JAX padding) are skipped, so a JAX list may be passed as is.
+    """
+    beam, allowed, s, exclusion, radius = ne.beam, ne.allowed, ne.s, ne.exclusion, ne.radius
+    conn, R = ne.conn, ne.R
+    E, ns, F = conn.shape[0], R.shape[1], fields.shape[0]
+    # the coordinates apart, so that the loop over j reads contiguous memory
+    X = _pair_points(x0, conn, R, pairs)
+    xx, xy = np.ascontiguousarray(X[:, :, 0]), np.ascontiguousarray(X[:, :, 1])
+    dxs, dys = np.empty((F, E, ns)), np.empty((F, E, ns))
+    for f in range(F):
+        D = _pair_points(fields[f], conn, R, pairs)
+        dxs[f] = D[:, :, 0]
+        dys[f] = D[:, :, 1]
+    ratio = 0.0
+    floor = 1e-2 * slack
+    for c in range(pairs.shape[0]):
+        e1, e2 = pairs[c, 0], pairs[c, 1]
+        if e1 >= E or e2 >= E:
+            continue
+        r12 = radius[e1] + radius[e2]
+        # two beams: every pair may interact, no test per pair
+        whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
+        for i in range(ns):
+            for j in range(ns):
+                if not (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)):
+                    continue
+                rx = xx[e1, i] - xx[e2, j]
+                ry = xy[e1, i] - xy[e2, j]
+                d = math.sqrt(rx * rx + ry * ry)
+                room = d - r12 + slack
+                # n = r / max(d, 1e-300), two divisions as the JAX twin (not one reciprocal)
+                dd = max(d, 1e-300)
+                nx, ny = rx / dd, ry / dd
+                approach = 0.0
+                for f in range(F):
+                    dx = dxs[f, e1, i] - dxs[f, e2, j]
+                    dy = dys[f, e1, i] - dys[f, e2, j]
+                    approach += max(-(nx * dx + ny * dy), 0.0)
+                # pairs with room <= s / 100 are in contact: left to the law
+                if room > floor:
+                    ratio = max(ratio, approach / room)
+    return ratio
+
+
+@njit
+def predictor_approach_ratio(x0, v, a, h, ne, pairs, slack):
+    """:func:`approach_ratio` of the predictor's motion split into h v and h^2 a / 2 (the
+    ratio of :func:`step_set.advanced_step`); v, a the control-point velocities and
+    accelerations (n_cp, 2)."""
+    fields = np.empty((2, x0.shape[0], 2))
+    c = 0.5 * h * h  # the JAX twin's 0.5 * h * h * a, scalars first
+    for p in range(x0.shape[0]):
+        for d in range(2):
+            fields[0, p, d] = h * v[p, d]
+            fields[1, p, d] = c * a[p, d]
+    return approach_ratio(x0, fields, ne, pairs, slack)
+
+
+@njit
+def step_approach_ratio(x0, x_new, ne, pairs, slack):
+    """:func:`approach_ratio` of the actual displacement x_new - x0 of a step (the
+    ``approach`` of :func:`step_set.after_step`)."""
+    fields = np.empty((1, x0.shape[0], 2))
+    for p in range(x0.shape[0]):
+        for d in range(2):
+            fields[0, p, d] = x_new[p, d] - x0[p, d]
+    return approach_ratio(x0, fields, ne, pairs, slack)
+
+
+# ------------------------------------------------------------------- post-step check
+
+
+@njit
+def missed_blocks(x, ne, frozen_pairs, reach, interaction):
+    """The checks after a step at x (:func:`problem.missed_blocks`): (an interacting block
+    is not in ``frozen_pairs``, number of box candidates, smallest surface gap).
+
+    Candidates: element pairs whose boxes grown by ``reach`` overlap; interacting: a
+    candidate with a point pair closer than ``interaction`` (inf: every candidate). The
+    gap is the smallest over the candidates' point pairs, or, with none (or none finite),
+    :func:`box_gap_lower_bound`. Rows of ``frozen_pairs`` at or beyond E (the JAX
+    padding) are ignored; its order does not matter."""
+    E = ne.conn.shape[0]
+    frozen = np.zeros((E, E), dtype=np.bool_)
+    for c in range(frozen_pairs.shape[0]):
+        e1, e2 = frozen_pairs[c, 0], frozen_pairs[c, 1]
+        if e1 < E and e2 < E:
+            frozen[e1, e2] = True
+    pairs = candidate_pairs(x, ne, reach)
+    d = block_distances(x, ne, pairs)
+    radius = ne.radius
+    missing = False
+    gap = math.inf
+    for c in range(pairs.shape[0]):
+        e1, e2 = pairs[c, 0], pairs[c, 1]
+        r12 = radius[e1] + radius[e2]
+        nearest = math.inf
+        for i in range(d.shape[1]):
+            for j in range(d.shape[2]):
+                nearest = min(nearest, d[c, i, j])
+                gap = min(gap, d[c, i, j] - r12)
+        if nearest < interaction and not frozen[e1, e2]:
+            missing = True
+    if not np.isfinite(gap):
+        gap = box_gap_lower_bound(x, ne, reach)
+    return missing, pairs.shape[0], gap

@@ -1,0 +1,455 @@
+"""The native engine of the time loop: one attempt at a time step compiled for the CPU
+(Numba), the twin of :func:`~beamcontact.dynamics.step.fused_attempt` (docs/architecture.md,
+"Engines").
+
+The attempt reads as the time step of docs/theory.md: the Newmark predictor; Newton on the
+HHT residual (paper eqs. 31-37, dynamics/hht.py), r = F_inertia + (1 + alpha) f_pot(u) -
+alpha f_pot(u_n) with its tangent assembled from the element blocks of
+:mod:`~beamcontact.assembly.native_model` into a bordered banded matrix
+(:mod:`~beamcontact.solvers.bordered_native`), the same convergence and divergence tests
+as :func:`~beamcontact.solvers.newton.newton`; the corrector (eqs. 33-35); the load state;
+the local error estimate (Zienkiewicz & Xie 1991), the energy floor and the diagnostics,
+reported in the order of :mod:`~beamcontact.dynamics.report`. The step controller, the
+energy account and the rejection rules are the driver's (dynamics/driver.py), shared with
+the JAX engine.
+
+Contact has no native attempt yet: :func:`~beamcontact.setup.start.choose_engine` runs
+cases with contact on the JAX engine.
+"""
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from beamcontact._native import njit
+from beamcontact.assembly import native_model as nmod
+from beamcontact.contact import blocks_native
+from beamcontact.contact import step_set_native as ssn
+from beamcontact.contact.laws import coarse_grained_native as cgn
+from beamcontact.dynamics.control import ADVANCE_FRACTION
+from beamcontact.dynamics.hht import DIVERGE_AFTER, DynState
+from beamcontact.dynamics.report import COUNTS, VALUES, Attempt, StepFlags, read_report
+from beamcontact.solvers import bordered_native as bordered
+from beamcontact.solvers.newton import NewtonOptions
+
+_V = {name: i for i, name in enumerate(VALUES)}
+_C = {name: i for i, name in enumerate(COUNTS)}
+# positions in the report vectors, as compile-time constants of the kernel
+V_RES, V_RES0, V_H, V_ERROR, V_APPROACH, V_GAP, V_EC_BEFORE, V_FLOOR = (
+    _V[k] for k in ("residual_norm", "initial_residual_norm", "h", "error", "approach",
+                    "min_gap", "E_contact_before", "energy_floor"))
+V_STRAIN, V_GRAVITY, V_EXT, V_CONTACT, V_KIN, V_PX, V_PY = (
+    _V[k] for k in ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y"))
+C_FLAGS, C_ITERATIONS = _C["flags"], _C["iterations"]
+C_COUNT, C_COUNT_AFTER = _C["count"], _C["count_after"]
+CONVERGED, MISSING = int(StepFlags.CONVERGED), int(StepFlags.MISSING_BLOCK)
+
+
+def _beam_dofs(nm: nmod.NativeModel) -> list[np.ndarray]:
+    """The dofs of each beam: the control points that elements connect, as connected
+    components (an ElementBlock may hold several beams of one degree)."""
+    parent = np.arange(nm.x_ref.shape[0])
+
+    def root(c):
+        while parent[c] != c:
+            parent[c] = parent[parent[c]]
+            c = parent[c]
+        return c
+
+    for e in range(nm.n_elements):
+        cps = nm.conn[e, :nm.elem_n_loc[e]]
+        for c in cps[1:]:
+            parent[root(c)] = root(cps[0])
+    roots = np.array([root(c) for c in range(nm.x_ref.shape[0])])
+    groups = [np.flatnonzero(roots == r) for r in np.unique(roots)]
+    return [np.stack([2 * g, 2 * g + 1], axis=-1).ravel() for g in groups]
+
+
+class NativeSystem:
+    """The bordered banded layout of a model's tangent: the dofs of the beam with the most
+    dofs form the band, those of every other beam the border
+    (:mod:`~beamcontact.solvers.bordered_native`); ``position[d]`` is the layout position
+    of global dof d, and the work arrays are allocated once."""
+
+    def __init__(self, nm: nmod.NativeModel, beam_dofs: list[np.ndarray]):
+        band = max(range(len(beam_dofs)), key=lambda b: beam_dofs[b].size)
+        order = np.concatenate([beam_dofs[band]]
+                               + [d for b, d in enumerate(beam_dofs) if b != band])
+        self.position = np.empty(nm.n_dof, dtype=np.int64)
+        self.position[order] = np.arange(nm.n_dof)
+        self.order = order
+        n_b = beam_dofs[band].size
+        self.block_positions = np.ascontiguousarray(self.position[nm.block_dofs])
+        kl, ku = bordered.band_widths(self.block_positions, n_b)
+        self.layout = bordered.layout(n_b, kl, ku, nm.n_dof - n_b)
+        self.arrays = bordered.allocate(self.layout)
+        self.free = np.ascontiguousarray(nm.free[order])  # in layout order
+
+
+@njit
+def _newmark(u, u_n, v_n, a_n, c_a, h, c_1, gamma, v_out, a_out):
+    """Velocity and acceleration of the displacement u (eqs. 33-35), as
+    :func:`~beamcontact.assembly.inertia.newmark_kinematics`."""
+    for i in range(u.shape[0]):
+        a = c_a * (u[i] - u_n[i] - h * v_n[i]) - c_1 * a_n[i]
+        a_out[i] = a
+        v_out[i] = v_n[i] + h * ((1.0 - gamma) * a_n[i] + gamma * a)
+
+
+@njit
+def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n,
+                      position, positions, free_layout, band, B, C, D, kl, ku, r, r_pot,
+                      r_layout, k_blocks):
+    """The HHT residual at u with supports applied (global numbering, into r), f_pot(u)
+    (contact included) into r_pot, and the tangent assembled into the bordered arrays
+    with its residual in layout order (r_layout); returns ||r||."""
+    nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r,
+                             r_pot, k_blocks)
+    bordered.zero(band, B, C, D)
+    bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
+    if contact[2].shape[0] > 0:
+        contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha, position, band,
+                       B, C, D, kl, ku, r_pot, r)
+    for i in range(r.shape[0]):
+        r_layout[position[i]] = r[i]
+    bordered.apply_supports(band, B, C, D, kl, ku, free_layout, r_layout)
+    norm = 0.0
+    for i in range(r.shape[0]):
+        r[i] = r_layout[position[i]]
+        norm += r[i] * r[i]
+    return np.sqrt(norm)
+
+
+@njit
+def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s, kl,
+            ku, u_n, v_n, a_n, f_pot_n, theta_n, t_n, h, alpha, rtol, utol, dt_ref,
+            total_mass, max_iterations, diverge_after, u, v, a, f_pot, theta, tangent, values,
+            counts):
+    """One attempt at a step h from (u_n, v_n, a_n, f_pot_n, theta_n, t_n) into (u, v, a,
+    f_pot, theta, tangent) and the report vectors ``values``, ``counts``
+    (:mod:`~beamcontact.dynamics.report`; meaningful state only when converged).
+
+    ``contact``: the frozen contact set, (conn, R, pairs, W, R12, amplitudes, law, m,
+    q_reg, cutoff) as :func:`contact_blocks` takes them (no pairs: no contact); the step h
+    is already shortened by the conservative advancement. The contact checks after the
+    step (approach, gap, missed blocks) are the caller's."""
+    n = u_n.shape[0]
+    beta = 0.25 * (1.0 - alpha) ** 2
+    gamma = 0.5 - alpha
+    coeffs = np.array([1.0 / (beta * h * h), h, (1.0 - 2.0 * beta) / (2.0 * beta), gamma])
+    x_max = 0.0
+    for i in range(n):
+        u[i] = u_n[i] + h * v_n[i] + 0.5 * h * h * a_n[i]
+        x_max = max(x_max, abs(nm.x_ref[i // 2, i % 2] + u_n[i]))
+    # the increment tolerance of fused_attempt: utol (h / dt_ref)^2, not below round-off
+    utol_h = max(utol * min((h / dt_ref) ** 2, 1.0), 8.0 * np.finfo(np.float64).eps * x_max)
+    f_norm = 0.0
+    for i in range(n):
+        f_norm += (f_pot_n[i] * nm.free[i]) ** 2
+    atol = rtol * np.sqrt(f_norm)
+    r, r_layout, du = np.empty(n), np.empty(n), np.empty(n)
+    k_blocks = np.empty((nm.block_dofs.shape[0], nm.block_dofs.shape[1],
+                         nm.block_dofs.shape[1]))
+    args = (position, positions, free_layout, band, B, C, D, kl, ku, r, f_pot, r_layout,
+            k_blocks)
+    norm0 = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
+                              t_n, *args)
+    done, failed = norm0 <= atol, not np.isfinite(norm0)
+    k, rn = 0, norm0
+    while not done and not failed and k < max_iterations:
+        for i in range(n):
+            r_layout[i] = -r_layout[i]
+        bordered.factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, du)
+        step, finite = 0.0, True
+        for i in range(n):
+            d = du[position[i]]
+            u[i] += d
+            step = max(step, abs(d))
+            finite = finite and np.isfinite(d)
+        rn = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
+                               t_n, *args)
+        converged = rn <= rtol * norm0 + atol or step <= utol_h
+        diverged = diverge_after > 0 and k + 1 >= diverge_after and rn > norm0
+        failed = not np.isfinite(rn) or not finite or diverged
+        done = converged and not failed
+        k += 1
+    _newmark(u, u_n, v_n, a_n, coeffs[0], h, coeffs[2], gamma, v, a)
+    nmod.update_load_state(nm, u, theta_n, t_n, theta, tangent)
+    e_strain, e_gravity, e_ext = nmod.energies(nm, u, 1.0, theta, tangent)
+    e_kin, p = nmod.kinetic_energy_momentum(nm, u, v)
+    e_kin_n = nmod.kinetic_energy_momentum(nm, u_n, v_n)[0]
+    da_max, forces = 0.0, 0.0
+    for i in range(n):
+        da_max = max(da_max, abs((a[i] - a_n[i]) * nm.free[i]))
+        forces += abs(f_pot_n[i] * nm.free[i]) + abs(f_pot[i] * nm.free[i])
+    values[:] = 0.0
+    values[V_RES], values[V_RES0], values[V_H] = rn, norm0, h
+    values[V_ERROR] = h * h * abs(beta - 1.0 / 6.0) * da_max
+    values[V_GAP] = np.nan
+    # what the converged solve can resolve of the energy (step.py's _energy_floor)
+    values[V_FLOOR] = utol_h * (forces + (0.5 - alpha) / (beta * h)
+                                * np.sqrt(2.0 * max(e_kin, e_kin_n) * total_mass))
+    values[V_STRAIN], values[V_GRAVITY], values[V_EXT] = e_strain, e_gravity, e_ext
+    values[V_KIN], values[V_PX], values[V_PY] = e_kin, p[0], p[1]
+    if contact[2].shape[0] > 0:
+        values[V_CONTACT] = contact_energy(nm, contact, u)
+        values[V_EC_BEFORE] = contact_energy(nm, contact, u_n)
+    counts[:] = 0
+    counts[C_FLAGS] = CONVERGED if done else 0
+    counts[C_ITERATIONS] = k
+
+
+@njit
+def contact_energy(nm, contact, u):
+    """The energy of the frozen contact set at displacement u."""
+    n = u.shape[0]
+    no = np.empty((0, 0))
+    return contact_blocks(nmod._positions(nm.x_ref, u), *contact, 0.0, np.empty(0, np.int64),
+                          no, no, no, no, -1, -1, np.zeros(n), np.zeros(n))
+
+
+@njit
+def state_diagnostics(nm, u, v, theta, tangent, values):
+    """The diagnostics of a state into ``values`` (the order of VALUES)."""
+    e_strain, e_gravity, e_ext = nmod.energies(nm, u, 1.0, theta, tangent)
+    e_kin, p = nmod.kinetic_energy_momentum(nm, u, v)
+    values[V_STRAIN], values[V_GRAVITY], values[V_EXT] = e_strain, e_gravity, e_ext
+    values[V_CONTACT], values[V_KIN], values[V_PX], values[V_PY] = 0.0, e_kin, p[0], p[1]
+
+
+@njit
+def contact_blocks(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff, scale,
+                   position, band, B, C, D, kl, ku, r_pot, r):
+    """The frozen contact set at control points x (n_cp, 2): its energy (returned), its
+    force added to r_pot and, times ``scale`` (1 + alpha), to r (both global), and its
+    tangent times ``scale`` added to the bordered matrix (kl = -1: no tangent, for the
+    energy alone). The blocks
+    (:func:`~beamcontact.contact.blocks_native.block_into`) are the JAX twin's
+    (:func:`~beamcontact.contact.blocks.block_forces`)."""
+    n_loc = ce_conn.shape[1]
+    k2 = 4 * n_loc
+    f = np.empty(k2)
+    kb = np.empty((k2, k2))
+    dofs = np.empty(k2, dtype=np.int64)
+    X1, X2 = np.empty((n_loc, 2)), np.empty((n_loc, 2))
+    energy = 0.0
+    for p in range(pairs.shape[0]):
+        e1, e2 = pairs[p, 0], pairs[p, 1]
+        for a in range(n_loc):
+            c1, c2 = ce_conn[e1, a], ce_conn[e2, a]
+            X1[a, 0], X1[a, 1] = x[c1, 0], x[c1, 1]
+            X2[a, 0], X2[a, 1] = x[c2, 0], x[c2, 1]
+            dofs[2 * a], dofs[2 * a + 1] = 2 * c1, 2 * c1 + 1
+            dofs[2 * n_loc + 2 * a], dofs[2 * n_loc + 2 * a + 1] = 2 * c2, 2 * c2 + 1
+        energy += blocks_native.block_into(law, X1, X2, ce_R[e1], ce_R[e2], W[p], R12[p],
+                                           amps[p], m, q_reg, cutoff, f, kb)
+        for i in range(k2):
+            r_pot[dofs[i]] += f[i]
+            r[dofs[i]] += scale * f[i]
+        if kl >= 0:
+            for i in range(k2):
+                dofs[i] = position[dofs[i]]
+            kb *= scale
+            bordered.add_block(band, B, C, D, kl, ku, dofs, kb)
+    return energy
+
+
+@dataclass(frozen=True)
+class _Chosen:
+    """The contact set of one attempt: the frozen set as :func:`attempt` takes it, the
+    step after the conservative advancement, and what the checks after the step need."""
+
+    frozen: tuple
+    h: float
+    x0: np.ndarray
+    x_pred: np.ndarray
+    motion: float
+    count: int
+
+
+class _NativeContact:
+    """The contact set of a step on the native engine, the twin of
+    :mod:`~beamcontact.contact.step_set` (all-pairs broad phase; no self-contact, no
+    obstacles): chosen at the predictor, the step shortened by the conservative
+    advancement, the checks after the step. IPIP "zones" are chosen on the host by the
+    rule the JAX engine uses (:meth:`~beamcontact.contact.problem.ContactProblem.
+    closest_pair_set`)."""
+
+    def __init__(self, contact):
+        self.problem = contact
+        self.ne = ssn.native_contact_elements(contact.elements)
+        law = contact.law
+        self.reach = float(contact.reach)
+        self.interaction = float(law.interaction_distance())
+        self.slack = float(law.advance_slack())
+        self.points = law.closest_pairs and law.pairing == "points"
+        self.zones = law.closest_pairs and law.pairing == "zones"
+        if law.closest_pairs:
+            self.code, self.params = blocks_native.LAW_PENALTY, (0.0, 0.0, 0.0)
+            self._amplitude = lambda r1, r2, b12: float(law.penalty)
+        else:
+            self.code = blocks_native.LAW_CG
+            self.params = (float(law.exponent), float(law.q_reg), float(law.cutoff))
+            self._amplitude = lambda r1, r2, b12: float(
+                law.k * b12 * cgn.cg_constant(float(law.exponent), r1, r2))
+
+    def _frozen(self, pairs: np.ndarray, W: np.ndarray) -> tuple:
+        ne = self.ne
+        r1, r2 = ne.radius[pairs[:, 0]], ne.radius[pairs[:, 1]]
+        b12 = ne.beta[pairs[:, 0]] * ne.beta[pairs[:, 1]]
+        amps = np.array([self._amplitude(a, b, c) for a, b, c in zip(r1, r2, b12,
+                                                                      strict=True)])
+        return (ne.conn, ne.R, np.ascontiguousarray(pairs, dtype=np.int64),
+                np.ascontiguousarray(W, dtype=np.float64), r1 + r2, amps, self.code,
+                *self.params)
+
+    def _weights(self, x, pairs: np.ndarray, motion: float):
+        """(pairs, W) of the law at x for the candidate blocks ``pairs``."""
+        ne = self.ne
+        if self.points:
+            q = ssn.block_gaps(x, ne, pairs)
+            W = ssn.point_weights(q, pairs, ne, 2.0 * motion)
+            return ssn.weighted_first(pairs, W)
+        if self.zones:
+            q = ssn.block_gaps(x, ne, pairs)
+            cs = self.problem.closest_pair_set(pairs, q, motion)
+            return np.asarray(cs.pairs), np.asarray(cs.W)
+        W = np.empty((pairs.shape[0], ne.R.shape[1], ne.R.shape[1]))
+        for p in range(pairs.shape[0]):
+            W[p] = ssn.arc_length_weights(ne, pairs[p, 0], pairs[p, 1])
+        return pairs, W
+
+    def set_at(self, x) -> tuple:
+        """The frozen set at configuration x with no motion (the start of a run)."""
+        if self.problem.law.closest_pairs:
+            pairs = ssn.candidate_pairs(x, self.ne, self.reach)
+        else:
+            pairs = ssn.near_candidates(x, self.ne, self.reach, self.interaction, 0.0)[0]
+        return self._frozen(*self._weights(x, pairs, 0.0))
+
+    def choose(self, s: DynState, h: float, motion_factor: float, x_ref) -> _Chosen:
+        """The set at the predictor of a step h and the step after the advancement."""
+        v2, a2 = s.v.reshape(-1, 2), s.a.reshape(-1, 2)
+        motion = motion_factor * 2.0 * np.sqrt(2.0) * (
+            np.max(np.abs(s.v)) * h + 0.5 * np.max(np.abs(s.a)) * h * h)
+        x0 = x_ref + s.u.reshape(-1, 2)
+        x_pred = x_ref + (s.u + h * s.v + 0.5 * h * h * s.a).reshape(-1, 2)
+        if self.problem.law.closest_pairs:
+            candidates = ssn.candidate_pairs(x_pred, self.ne, self.reach + motion)
+            count = candidates.shape[0]
+            pairs, W = self._weights(x_pred, candidates, motion)
+        else:
+            pairs, count = ssn.near_candidates(x_pred, self.ne, self.reach, self.interaction,
+                                               motion)
+            pairs, W = self._weights(x_pred, pairs, motion)
+        ratio = ssn.predictor_approach_ratio(x0, v2, a2, h, self.ne, pairs, self.slack)
+        h_used = h * min(1.0, ADVANCE_FRACTION / max(ratio, 1e-300))
+        return _Chosen(self._frozen(pairs, W), h_used, x0, x_pred, motion, int(count))
+
+    def check(self, chosen: _Chosen, s: DynState, u, x_ref, values, counts) -> None:
+        """The checks after the step (:func:`~beamcontact.contact.step_set.after_step`)
+        into the report vectors."""
+        x_new = x_ref + u.reshape(-1, 2)
+        pairs = chosen.frozen[2]
+        missing, count_after, gap = ssn.missed_blocks(x_new, self.ne, pairs, self.reach,
+                                                      self.interaction)
+        deviation = np.max(np.linalg.norm(x_new - chosen.x_pred, axis=1))
+        missing = missing or deviation > chosen.motion + 1e-6 * self.reach
+        values[V_GAP] = gap
+        values[V_APPROACH] = ssn.step_approach_ratio(chosen.x0, x_new, self.ne, pairs,
+                                                     self.slack)
+        counts[C_COUNT], counts[C_COUNT_AFTER] = chosen.count, count_after
+        if missing:
+            counts[C_FLAGS] |= MISSING
+
+
+# the contact argument of a model without contact: no element pairs
+NO_CONTACT = (np.zeros((0, 1), np.int64), np.zeros((0, 1, 1)), np.zeros((0, 2), np.int64),
+              np.zeros((0, 1, 1)), np.zeros(0), np.zeros(0), blocks_native.LAW_CG, 0.0, 0.0,
+              0.0)
+
+
+def _host(a) -> np.ndarray:
+    """A C-contiguous float64 host copy of an array (JAX or NumPy)."""
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+
+
+class NativeEngine:
+    """The native engine of the time loop (docs/architecture.md, "Engines"): the same
+    interface as :class:`~beamcontact.dynamics.step.JaxEngine`; its states are
+    :class:`~beamcontact.dynamics.hht.DynState` of NumPy arrays."""
+
+    name = "native"
+
+    def __init__(self, model, alpha: float, options: NewtonOptions, length: float,
+                 dt_ref: float, contact=None):
+        self.nm = nmod.native_arrays(model)
+        self.contact = contact
+        self._contact = None if contact is None else _NativeContact(contact)
+        self.system = NativeSystem(self.nm, _beam_dofs(self.nm))
+        self.alpha, self.options = float(alpha), options
+        self.utol = options.utol * length
+        self.dt_ref = float(dt_ref)
+        nm = self.nm
+        self.total_mass = float(np.sum(nm.rho_area[:, None] * nm.wq * np.sqrt(nm.g_ref)))
+
+    def host_state(self, state: DynState) -> DynState:
+        """``state`` with host arrays (the initial state comes from the JAX twin)."""
+        ls = state.load_state
+        return DynState(float(state.t), _host(state.u), _host(state.v), _host(state.a),
+                        _host(state.f_pot), replace(ls, theta=_host(ls.theta),
+                                                    tangent=_host(ls.tangent)))
+
+    def attempt(self, state: DynState, h: float, motion_factor: float, capacity) -> Attempt:
+        """One attempt at a step of at most h from ``state``: the contact set at the
+        predictor and the conservative advancement (:class:`_NativeContact`), the compiled
+        :func:`attempt`, the contact checks at the solution. The candidate lists have no
+        fixed capacity here; their counts are reported as the JAX twin's are."""
+        del capacity
+        s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
+        n = self.nm.n_dof
+        frozen, h_used = NO_CONTACT, float(h)
+        if self._contact is not None:
+            chosen = self._contact.choose(s, float(h), motion_factor, self.nm.x_ref)
+            frozen, h_used = chosen.frozen, chosen.h
+        u, v, a, f_pot = (np.empty(n) for _ in range(4))
+        theta = np.empty_like(s.load_state.theta)
+        tangent = np.empty_like(s.load_state.tangent)
+        values, counts = np.empty(len(VALUES)), np.empty(len(COUNTS), dtype=np.int64)
+        sysm, lay = self.system, self.system.layout
+        ar = sysm.arrays
+        attempt(self.nm, frozen, sysm.position, sysm.block_positions, sysm.free, ar.band,
+                ar.B, ar.C, ar.D, ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u, s.v, s.a, s.f_pot,
+                s.load_state.theta, s.load_state.tangent, h_used, self.alpha,
+                self.options.rtol, self.utol, self.dt_ref, self.total_mass,
+                self.options.max_iterations, DIVERGE_AFTER, u, v, a, f_pot, theta, tangent,
+                values, counts)
+        if self._contact is not None:
+            self._contact.check(chosen, s, u, self.nm.x_ref, values, counts)
+        new = DynState(s.t + values[V_H], u, v, a, f_pot,
+                       replace(s.load_state, theta=theta, tangent=tangent))
+        return Attempt(new, *read_report(values.tolist(), counts.tolist()))
+
+    def energies(self, state: DynState, capacity) -> dict:
+        """The diagnostics of ``state`` under the contact set at its configuration (the
+        energy account's start)."""
+        del capacity
+        s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
+        values = np.zeros(len(VALUES))
+        state_diagnostics(self.nm, s.u, s.v, s.load_state.theta, s.load_state.tangent,
+                          values)
+        if self._contact is not None:
+            frozen = self._contact.set_at(self.nm.x_ref + s.u.reshape(-1, 2))
+            values[V_CONTACT] = contact_energy(self.nm, frozen, s.u)
+        return {k: float(values[_V[k]]) for k in
+                ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y")}
+
+    @staticmethod
+    def at_time(state: DynState, t: float) -> DynState:
+        """``state`` with its time set to t."""
+        return replace(state, t=t)
+
+    @staticmethod
+    def time(state: DynState) -> float:
+        """The time of ``state``."""
+        return float(state.t)

@@ -1,0 +1,543 @@
+"""Native (Numba) linear solver of the bordered banded tangent of the CPU engine.
+
+The Newton tangent of beams in contact, with the dofs of the largest beam first, is
+
+    K = [[A, B],      A (n_b x n_b): banded, lower / upper bandwidths kl, ku (one beam:
+         [C, D]]      kl = ku = 2 (p + 1) - 1 for interleaved x, y dofs), not symmetric;
+                      B (n_b x m), C (m x n_b), D (m x m): dense border (all other beams).
+
+and K x = f is solved by block elimination with the Schur complement (Golub & Van Loan,
+Matrix Computations, 4th ed.: sec. 3.2 block LU, 3.4 partial pivoting, 4.3 banded LU with
+partial pivoting; bordered systems and the limits of plain block elimination: Govaerts &
+Pryce, "Mixed block elimination for linear systems with wider borders", IMA J. Numer.
+Anal. 13, 1993):
+
+    A = P L U                       banded LU with partial pivoting (LAPACK dgbtf2)
+    X = A^{-1} B                    (stored over B)
+    S = D - C X = P_s L_s U_s       dense LU with partial pivoting (LAPACK dgetf2), over D
+    y = S^{-1} (f_c - C A^{-1} f_b),   x_b = A^{-1} f_b - X y.
+
+Cost O(n_b (kl + ku) (m + 1) + n_b m^2 + m^3): linear in the length of the big beam.
+m = 0 (one beam) is the banded LU alone; n_b = 0 (no band) is the dense LU of D alone.
+
+Storage layout (all float64, C order; layout positions 0 .. n_b + m - 1, the first n_b
+the band, position n_b + k is border index k):
+
+    band (n_b, ldab), ldab = 2 kl + ku + 1:  band[j, kl + ku + i - j] = A[i, j]
+        for max(0, j - ku) <= i <= min(n_b - 1, j + kl). Row j of ``band`` is column j of
+        LAPACK's band storage, so ``band`` is LAPACK's ``ab`` array memory for memory
+        (``band.T`` can be handed to dgbtrf / dgbsv). The first kl entries of each row are
+        not entries of A: they receive the fill-in of the row interchanges (U has upper
+        bandwidth kl + ku); the factorisation zeroes them itself.
+    B (n_b, m): B[i, k] = K[i, n_b + k];   C (m, n_b): C[k, j] = K[n_b + k, j];
+    D (m, m): D[k, l] = K[n_b + k, n_b + l].
+    ipiv (n_b,), ipiv_s (m,) int64: the row interchanges (0-based: row j was swapped with
+        row ipiv[j] at step j), written by :func:`factor`.
+
+After :func:`factor`, ``band`` holds L (multipliers below the diagonal entry) and U,
+B holds X = A^{-1} B, D holds the LU factors of S; C is unchanged. The factorisation is in
+place because the tangent is assembled anew in every Newton iteration.
+
+Singular matrices: as LAPACK (and so the sparse path of :mod:`beamcontact.solvers.linear`,
+whose ``host_solve`` returns NaN when gbsv or SuperLU reports a singular factor), the test
+is an exact zero pivot. :func:`factor` returns ``info`` = 0 on success, j + 1 when the
+pivot of column j of A is zero (A singular: block elimination cannot proceed even though
+K itself may be regular, see the caveat below) and n_b + k + 1 when the pivot of column k
+of S is zero. :func:`factor_solve` then returns that info with x all NaN, so that the
+Newton iteration fails and the step is cut, as on the JAX paths (whose dense LU turns a
+zero pivot into inf / NaN).
+
+Caveat: block elimination pivots within A and within S only, never across the border. It
+is stable when A is well conditioned (a beam with mass in the HHT tangent, or a supported
+beam in statics); a nearly singular A (say a free floating big beam in statics held only
+by contact) loses accuracy or reports info in 1 .. n_b although K is regular. The dense
+or sparse solve of the whole K is the fallback for that case.
+
+Assembly: :func:`add_block` scatter-adds a local matrix (an element or contact block) at
+its layout positions; an entry of A outside the band that is not exactly zero raises
+ValueError (kl, ku too small for the dof order); exact zeros (padding, supported rows)
+are skipped. Supports as :func:`beamcontact.assembly.system.apply_supports`: K becomes
+K * free[:, None] * free[None, :] + diag(1 - free) and r becomes r * free
+(:func:`apply_supports`), the same products in the same order.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+from beamcontact._native import njit
+
+
+class BorderedLayout(NamedTuple):
+    """Dimensions of a bordered banded system: band of n_b dofs with bandwidths (kl, ku),
+    border of m dofs."""
+
+    n_b: int
+    kl: int
+    ku: int
+    m: int
+
+    @property
+    def n(self) -> int:
+        """Number of unknowns."""
+        return self.n_b + self.m
+
+    @property
+    def ldab(self) -> int:
+        """Entries per column of the band storage, fill-in rows included."""
+        return 2 * self.kl + self.ku + 1
+
+    @property
+    def shapes(self) -> dict:
+        """Shapes of the arrays of :func:`allocate`."""
+        return {"band": (self.n_b, self.ldab), "B": (self.n_b, self.m),
+                "C": (self.m, self.n_b), "D": (self.m, self.m),
+                "ipiv": (self.n_b,), "ipiv_s": (self.m,)}
+
+
+class BorderedArrays(NamedTuple):
+    """The arrays of one bordered system (see the module docstring for their meaning)."""
+
+    band: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    ipiv: np.ndarray
+    ipiv_s: np.ndarray
+
+
+def layout(n_b: int, kl: int, ku: int, m: int) -> BorderedLayout:
+    """The layout of a system of n_b band dofs of bandwidths (kl, ku) and m border dofs."""
+    n_b, kl, ku, m = int(n_b), int(kl), int(ku), int(m)
+    if min(n_b, kl, ku, m) < 0:
+        raise ValueError(f"negative dimension in (n_b, kl, ku, m) = {(n_b, kl, ku, m)}")
+    return BorderedLayout(n_b, kl, ku, m)
+
+
+def allocate(lay: BorderedLayout) -> BorderedArrays:
+    """Zeroed arrays for ``lay``."""
+    s = lay.shapes
+    return BorderedArrays(np.zeros(s["band"]), np.zeros(s["B"]), np.zeros(s["C"]),
+                          np.zeros(s["D"]), np.zeros(s["ipiv"], np.int64),
+                          np.zeros(s["ipiv_s"], np.int64))
+
+
+def band_widths(dofs: np.ndarray, n_b: int) -> tuple[int, int]:
+    """(kl, ku) of the band that blocks at layout positions ``dofs`` (n_blocks, k) give
+    to A: the largest i - j and j - i over pairs of positions below n_b of one block."""
+    dofs = np.asarray(dofs).reshape(len(dofs), -1)
+    kl = ku = 0
+    for row in dofs:
+        d = row[row < n_b]
+        if d.size:
+            diff = d[:, None] - d[None, :]
+            kl, ku = max(kl, int(diff.max())), max(ku, int(-diff.min()))
+    return kl, ku
+
+
+# ---------------------------------------------------------------- assembly
+
+
+@njit
+def _check_widths(band, kl, ku):
+    """Bandwidths other than the storage's would put entries in the wrong diagonals."""
+    if kl < 0 or ku < 0 or band.shape[1] != 2 * kl + ku + 1:
+        raise ValueError("kl, ku do not match the band storage (2 kl + ku + 1 columns)")
+
+
+@njit
+def zero(band, B, C, D):
+    """Set the system to zero (fill-in rows of the band included)."""
+    band[:] = 0.0
+    B[:] = 0.0
+    C[:] = 0.0
+    D[:] = 0.0
+
+
+@njit
+def add_block(band, B, C, D, kl, ku, dofs, k_local):
+    """K[dofs[a], dofs[b]] += k_local[a, b] for the layout positions ``dofs`` (k,) and the
+    local matrix ``k_local`` (k, k); repeated positions add up.
+
+    Exact zeros are skipped, so padding blocks cost no checks and a block may have entries
+    outside the band as long as they are zero; a nonzero one raises ValueError, since
+    dropping it would solve another system. Positions outside 0 .. n_b + m - 1 raise too
+    (Numba does not check bounds).
+    """
+    _check_widths(band, kl, ku)
+    n_b = band.shape[0]
+    n = n_b + D.shape[0]
+    kv = kl + ku
+    k = dofs.shape[0]
+    for a in range(k):
+        i = dofs[a]
+        for b in range(k):
+            v = k_local[a, b]
+            if v == 0.0:
+                continue
+            j = dofs[b]
+            if i < 0 or i >= n or j < 0 or j >= n:
+                raise ValueError("add_block: dof outside the system")
+            if i < n_b:
+                if j < n_b:
+                    if i - j > kl or j - i > ku:
+                        raise ValueError("add_block: nonzero entry outside the band")
+                    band[j, kv + i - j] += v
+                else:
+                    B[i, j - n_b] += v
+            elif j < n_b:
+                C[i - n_b, j] += v
+            else:
+                D[i - n_b, j - n_b] += v
+
+
+@njit
+def add_blocks(band, B, C, D, kl, ku, dofs, blocks):
+    """:func:`add_block` for each block: dofs (n_blocks, k), blocks (n_blocks, k, k)."""
+    for e in range(dofs.shape[0]):
+        add_block(band, B, C, D, kl, ku, dofs[e], blocks[e])
+
+
+@njit
+def add_diagonal(band, D, kl, ku, values):
+    """K[i, i] += values[i] for every layout position i (values of length n_b + m)."""
+    n_b = band.shape[0]
+    kv = kl + ku
+    for i in range(n_b):
+        band[i, kv] += values[i]
+    for k in range(D.shape[0]):
+        D[k, k] += values[n_b + k]
+
+
+@njit
+def apply_supports(band, B, C, D, kl, ku, free, r):
+    """In place, as :func:`beamcontact.assembly.system.apply_supports`:
+    K <- K * free[:, None] * free[None, :] + diag(1 - free) and r <- r * free (free = 1
+    for a free dof, 0 for a supported one: its row and column become the identity's and
+    its residual 0, so its Newton increment is 0). Same products in the same order, so
+    the values are the dense ones exactly; the fill-in rows of the band are left alone.
+    """
+    n_b = band.shape[0]
+    m = D.shape[0]
+    kv = kl + ku
+    for j in range(n_b):
+        fj = free[j]
+        for i in range(max(0, j - ku), min(n_b, j + kl + 1)):
+            band[j, kv + i - j] = band[j, kv + i - j] * free[i] * fj
+        band[j, kv] += 1.0 - fj
+    for i in range(n_b):
+        fi = free[i]
+        for k in range(m):
+            B[i, k] = B[i, k] * fi * free[n_b + k]
+    for k in range(m):
+        fk = free[n_b + k]
+        for j in range(n_b):
+            C[k, j] = C[k, j] * fk * free[j]
+        for q in range(m):
+            D[k, q] = D[k, q] * fk * free[n_b + q]
+        D[k, k] += 1.0 - fk
+    for i in range(n_b + m):
+        r[i] = r[i] * free[i]
+
+
+@njit
+def to_dense(band, B, C, D, kl, ku):
+    """K as an (n_b + m) x (n_b + m) array (tests and diagnostics; before :func:`factor`)."""
+    n_b = band.shape[0]
+    m = D.shape[0]
+    kv = kl + ku
+    K = np.zeros((n_b + m, n_b + m))
+    for j in range(n_b):
+        for i in range(max(0, j - ku), min(n_b, j + kl + 1)):
+            K[i, j] = band[j, kv + i - j]
+    K[:n_b, n_b:] = B
+    K[n_b:, :n_b] = C
+    K[n_b:, n_b:] = D
+    return K
+
+
+@njit
+def matvec(band, B, C, D, kl, ku, x, y):
+    """y = K x (before :func:`factor`): residuals, iterative refinement."""
+    n_b = band.shape[0]
+    m = D.shape[0]
+    kv = kl + ku
+    y[:] = 0.0
+    for j in range(n_b):
+        xj = x[j]
+        for i in range(max(0, j - ku), min(n_b, j + kl + 1)):
+            y[i] += band[j, kv + i - j] * xj
+    for i in range(n_b):
+        s = 0.0
+        for k in range(m):
+            s += B[i, k] * x[n_b + k]
+        y[i] += s
+    for k in range(m):
+        s = 0.0
+        for j in range(n_b):
+            s += C[k, j] * x[j]
+        for q in range(m):
+            s += D[k, q] * x[n_b + q]
+        y[n_b + k] = s
+
+
+# ---------------------------------------------------------------- banded LU
+
+
+@njit
+def band_lu(band, kl, ku, ipiv):
+    """A = P L U in place: LAPACK dgbtf2 (Golub & Van Loan sec. 4.3, band Gaussian
+    elimination with pivoting), right-looking, one column at a time. Returns 0, or j + 1
+    at the first zero pivot (column j), where it stops.
+
+    A row interchange at step j brings row ipiv[j] <= j + kl, whose entries reach column
+    ipiv[j] + ku, into row j: U gets upper bandwidth kl + ku, held by the first kl entries
+    of each band row (zeroed here, so that stale factors never leak in). ju, the last
+    column touched by any interchange so far, bounds the update, as in dgbtf2.
+    """
+    n = band.shape[0]
+    kv = kl + ku
+    for j in range(n):
+        for r in range(kl):
+            band[j, r] = 0.0
+    ju = 0
+    for j in range(n):
+        col = band[j]
+        km = min(kl, n - 1 - j)
+        p = 0
+        amax = abs(col[kv])
+        for i in range(1, km + 1):
+            a = abs(col[kv + i])
+            if a > amax:
+                amax = a
+                p = i
+        ipiv[j] = j + p
+        pivot = col[kv + p]
+        if pivot == 0.0:
+            return j + 1
+        ju = max(ju, min(j + ku + p, n - 1))
+        if p != 0:
+            for c in range(j, ju + 1):
+                t = band[c, kv + j - c]
+                band[c, kv + j - c] = band[c, kv + j + p - c]
+                band[c, kv + j + p - c] = t
+        # division, not a product with 1 / pivot: one rounding per multiplier
+        for i in range(1, km + 1):
+            col[kv + i] = col[kv + i] / pivot
+        # 1-d slices: Numba compiles their loop to a tighter one than 2-d indexing (1.5 times
+        # faster here); taken inside the branch, the slice made the whole LU 2 times slower
+        mult = col[kv + 1:kv + km + 1]
+        for c in range(j + 1, ju + 1):
+            o = kv + j - c
+            target = band[c, o + 1:o + km + 1]
+            u = band[c, o]
+            if u != 0.0:
+                for i in range(km):
+                    target[i] -= mult[i] * u
+    return 0
+
+
+@njit
+def band_solve(band, kl, ku, ipiv, x):
+    """x <- A^{-1} x with the factors of :func:`band_lu` (LAPACK dgbtrs, no transpose):
+    the interchanges and L forward, then U (bandwidth kl + ku) backward by columns, which
+    reads each band row contiguously."""
+    n = band.shape[0]
+    kv = kl + ku
+    for j in range(n - 1):
+        km = min(kl, n - 1 - j)
+        p = ipiv[j]
+        if p != j:
+            t = x[j]
+            x[j] = x[p]
+            x[p] = t
+        xj = x[j]
+        if xj != 0.0:
+            for i in range(1, km + 1):
+                x[j + i] -= band[j, kv + i] * xj
+    for j in range(n - 1, -1, -1):
+        xj = x[j] / band[j, kv]
+        x[j] = xj
+        if xj != 0.0:
+            for i in range(max(0, j - kv), j):
+                x[i] -= band[j, kv + i - j] * xj
+
+
+@njit
+def band_solve_rows(band, kl, ku, ipiv, X):
+    """X <- A^{-1} X for X (n_b, r), all columns at once: every operation of
+    :func:`band_solve` on a scalar becomes one on a contiguous row of X.
+
+    Contact couples few dofs of the band, so the leading rows of B are often zero; the
+    steps before max(0, f - kl), f the first nonzero row, interchange and eliminate zero
+    rows only (ipiv[j] <= j + kl < f) and are skipped.
+    """
+    n = X.shape[0]
+    r = X.shape[1]
+    kv = kl + ku
+    f = n
+    for i in range(n):
+        nonzero = False
+        for c in range(r):
+            if X[i, c] != 0.0:
+                nonzero = True
+                break
+        if nonzero:
+            f = i
+            break
+    if f == n:
+        return
+    for j in range(max(0, f - kl), n - 1):
+        km = min(kl, n - 1 - j)
+        p = ipiv[j]
+        if p != j:
+            for c in range(r):
+                t = X[j, c]
+                X[j, c] = X[p, c]
+                X[p, c] = t
+        for i in range(1, km + 1):
+            mult = band[j, kv + i]
+            if mult != 0.0:
+                for c in range(r):
+                    X[j + i, c] -= mult * X[j, c]
+    for j in range(n - 1, -1, -1):
+        d = band[j, kv]
+        for c in range(r):
+            X[j, c] = X[j, c] / d
+        for i in range(max(0, j - kv), j):
+            u = band[j, kv + i - j]
+            if u != 0.0:
+                for c in range(r):
+                    X[i, c] -= u * X[j, c]
+
+
+# ---------------------------------------------------------------- dense LU
+
+
+@njit
+def dense_lu(D, ipiv):
+    """D = P L U in place, right-looking with partial pivoting (LAPACK dgetf2; Golub &
+    Van Loan sec. 3.4), whole rows interchanged so that the row-major updates run along
+    contiguous rows. Returns 0, or k + 1 at the first zero pivot (column k)."""
+    m = D.shape[0]
+    for k in range(m):
+        p = k
+        amax = abs(D[k, k])
+        for i in range(k + 1, m):
+            a = abs(D[i, k])
+            if a > amax:
+                amax = a
+                p = i
+        ipiv[k] = p
+        pivot = D[p, k]
+        if pivot == 0.0:
+            return k + 1
+        if p != k:
+            for c in range(m):
+                t = D[k, c]
+                D[k, c] = D[p, c]
+                D[p, c] = t
+        # 1-d slices taken outside the branch, as in band_lu: 2.4 times faster for m = 60
+        pivot_row = D[k, k + 1:]
+        for i in range(k + 1, m):
+            target = D[i, k + 1:]
+            mult = D[i, k] / pivot
+            D[i, k] = mult
+            if mult != 0.0:
+                for c in range(m - k - 1):
+                    target[c] -= mult * pivot_row[c]
+    return 0
+
+
+@njit
+def dense_solve(D, ipiv, y):
+    """y <- S^{-1} y with the factors of :func:`dense_lu` (LAPACK dgetrs)."""
+    m = D.shape[0]
+    for k in range(m):
+        p = ipiv[k]
+        if p != k:
+            t = y[k]
+            y[k] = y[p]
+            y[p] = t
+    for i in range(m):
+        s = y[i]
+        for k in range(i):
+            s -= D[i, k] * y[k]
+        y[i] = s
+    for i in range(m - 1, -1, -1):
+        s = y[i]
+        for c in range(i + 1, m):
+            s -= D[i, c] * y[c]
+        y[i] = s / D[i, i]
+
+
+# ---------------------------------------------------------------- bordered system
+
+
+@njit
+def factor(band, B, C, D, kl, ku, ipiv, ipiv_s):
+    """Factorise K in place (module docstring): band LU of A, B <- X = A^{-1} B,
+    D <- LU of S = D - C X. Returns 0, j + 1 for a zero pivot in column j of A, or
+    n_b + k + 1 for one in column k of S.
+
+    All m columns of B are solved for, although contact leaves most of them zero: packing
+    the nonzero ones into a narrower block costs as much as it saves at these sizes (the
+    row loops of :func:`band_solve_rows` do not get proportionally cheaper with fewer
+    columns). The zero entries of C are skipped in S = D - C X.
+    """
+    _check_widths(band, kl, ku)
+    n_b = band.shape[0]
+    m = D.shape[0]
+    info = band_lu(band, kl, ku, ipiv)
+    if info != 0:
+        return info
+    if m == 0:
+        return 0
+    band_solve_rows(band, kl, ku, ipiv, B)
+    for k in range(m):
+        for j in range(n_b):
+            cv = C[k, j]
+            if cv != 0.0:
+                for q in range(m):
+                    D[k, q] -= cv * B[j, q]
+    info = dense_lu(D, ipiv_s)
+    if info != 0:
+        return n_b + info
+    return 0
+
+
+@njit
+def solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x):
+    """x = K^{-1} rhs with the factors of a successful :func:`factor` (rhs unchanged; it
+    may be x itself)."""
+    n_b = band.shape[0]
+    m = D.shape[0]
+    for i in range(n_b + m):
+        x[i] = rhs[i]
+    band_solve(band, kl, ku, ipiv, x[:n_b])
+    if m == 0:
+        return
+    y = x[n_b:]
+    for k in range(m):
+        s = y[k]
+        for j in range(n_b):
+            s -= C[k, j] * x[j]
+        y[k] = s
+    dense_solve(D, ipiv_s, y)
+    for i in range(n_b):
+        s = x[i]
+        for k in range(m):
+            s -= B[i, k] * y[k]
+        x[i] = s
+
+
+@njit
+def factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x):
+    """x = K^{-1} rhs: :func:`factor` (in place) then :func:`solve`. Returns factor's info;
+    on a zero pivot (info != 0) x is all NaN."""
+    info = factor(band, B, C, D, kl, ku, ipiv, ipiv_s)
+    if info != 0:
+        x[:] = np.nan
+        return info
+    solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x)
+    return 0
