@@ -204,7 +204,9 @@ def test_compilation_cache_location_and_identical_results(tmp_path, monkeypatch,
     case = _write_case(tmp_path / "c.toml", raw)
     env = {**os.environ, "BEAMCONTACT_CACHE_DIR": str(tmp_path / "cache")}
     runs = []
-    for k, cache in enumerate((None, env, env)):  # off, filling, reading
+    # off, filling, reading (native: filling and reading; without a cache the kernels
+    # compile as when filling it, a minute of the suite for nothing new)
+    for k, cache in enumerate((None, env, env) if engine == "jax" else (env, env)):
         out = tmp_path / f"o{k}"
         proc = subprocess.run([sys.executable, "-m", "beamcontact.cli", "run", str(case),
                                "--out", str(out), "--quiet"], capture_output=True, text=True,
@@ -217,7 +219,7 @@ def test_compilation_cache_location_and_identical_results(tmp_path, monkeypatch,
         assert any((tmp_path / "cache" / "exported").glob("fused_attempt-*.hlo"))
     else:  # the native kernels, in a folder of their own
         assert any((tmp_path / "cache" / "numba").rglob("*.nbi"))
-    assert runs[0] == runs[1] == runs[2]
+    assert all(run == runs[0] for run in runs)
 
 
 # --- mechanisms: static beams that nothing holds -------------------------------------------

@@ -152,8 +152,10 @@ def _configurations():
     return cases
 
 
-CASES = _configurations()
-IDS = [c[0] for c in CASES]
+# the self-contact ring goes beyond what the native engine runs today (no self-contact): a
+# long study, kept for `pytest -m slow`
+CASES = [pytest.param(*c, id=c[0], marks=[pytest.mark.slow] if "ring" in c[0] else [])
+         for c in _configurations()]
 
 
 def _capacity(cp):
@@ -191,7 +193,7 @@ def _rel(a, b):
                                                              1e-300))
 
 
-@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES, ids=IDS)
+@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES)
 def test_candidates_boxes_and_arc_length_weights(name, cp, ne, x):
     """The same element pairs in the same (e1, e2) order, for several margins; the boxes
     and the lower bound of the gap bitwise; W = w1 w2 of every candidate bitwise."""
@@ -220,7 +222,7 @@ def test_candidates_boxes_and_arc_length_weights(name, cp, ne, x):
         assert ssn.candidate_pairs(x, ne, 0.5).shape[0] == 0
 
 
-@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES, ids=IDS)
+@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES)
 def test_step_set(name, cp, ne, x):
     """The frozen set of a step: coarse-grained, the candidates culled to the blocks within
     interaction + 2 motion (the same kept list); IPIP "points", the same gaps (1e-12), the
@@ -270,7 +272,7 @@ def test_step_set(name, cp, ne, x):
             assert 0 < p.shape[0] < n  # the step's culling kept some blocks, not all
 
 
-@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES, ids=IDS)
+@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES)
 def test_approach_ratios(name, cp, ne, x):
     """Conservative advancement over the frozen set: the predictor's (h v, h^2 a / 2) and
     the actual displacement, to 1e-12 relative, with motions that approach and recede."""
@@ -310,7 +312,7 @@ def test_approach_ratios(name, cp, ne, x):
         assert max(ratios) == 0.0  # no pair at all
 
 
-@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES, ids=IDS)
+@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES)
 def test_missed_blocks(name, cp, ne, x):
     """The post-step check at a configuration moved from the predictor: the same flag, the
     same number of box candidates, the same smallest gap (the box bound when there is no
