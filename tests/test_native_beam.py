@@ -17,6 +17,7 @@ import dataclasses
 import os
 import subprocess
 import sys
+import time
 
 import jax
 import jax.numpy as jnp
@@ -359,3 +360,18 @@ def test_numba_cache_beside_the_jax_cache(tmp_path):
     assert any(p.suffix == ".nbi" for p in (tmp_path / "jax" / "numba").rglob("*"))
     off = _run(code, "").split()
     assert off == [on[0], "NullCache"]
+
+
+def test_numba_cache_removes_folders_of_old_sources(tmp_path):
+    """A folder of compiled kernels that no version used for STALE_AFTER_S goes; a
+    recently used one of another version stays."""
+    numba_dir = tmp_path / "jax" / "numba"
+    old, recent = numba_dir / "0000000000000000", numba_dir / "1111111111111111"
+    for folder in (old, recent):
+        folder.mkdir(parents=True)
+        (folder / "kernel.nbi").write_bytes(b"")
+    long_ago = time.time() - 31 * 24 * 3600.0
+    os.utime(old, (long_ago, long_ago))
+    current = _run("from beamcontact import _native; print(_native._CACHE_DIR.name)",
+                   str(tmp_path / "jax"))
+    assert sorted(p.name for p in numba_dir.iterdir()) == sorted([recent.name, current])

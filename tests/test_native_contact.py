@@ -77,9 +77,10 @@ def test_constants_match_jax():
             float(cg_wall_constant(m, R1)), rel=RTOL)
 
 
-@pytest.mark.parametrize("m", [6.0, 12.0])
+@pytest.mark.parametrize("m", [6.0, 12.0, 7.3])
 def test_cg_pair_law_matches_jax_ad(m):
-    """Phi, dPhi/dd, d2Phi/dd2 (eq. 9) and the s-derivatives f', f'' the blocks lift."""
+    """Phi, dPhi/dd, d2Phi/dd2 (eq. 9) and the s-derivatives f', f'' the blocks lift
+    (m = 6, 12: the power by repeated squaring; 7.3: through exp and log)."""
     law = _cg(m)
     amp = float(law.amplitude(R1, R2, BETA12))
     d = R12 + _gaps(np.random.default_rng(1), Q_REG, CUTOFF - R12)
@@ -93,7 +94,7 @@ def test_cg_pair_law_matches_jax_ad(m):
     np.testing.assert_allclose(got, want, rtol=RTOL, atol=0.0)
 
 
-@pytest.mark.parametrize("m", [8.0, 12.0])
+@pytest.mark.parametrize("m", [8.0, 12.0, 9.7])
 def test_cg_obstacle_law_matches_jax_ad(m):
     """w Phi_w(q) of a point against a half-space and its q-derivatives, cut off at the
     gap cutoff - 2 R."""

@@ -5,7 +5,8 @@ place for it is a ``__pycache__`` beside the source, which fails or clashes in a
 or shared install; it goes instead to a ``numba`` folder in the cache folder of
 :mod:`beamcontact._cache` (``<cache>/numba/<hash of the kernel sources>``, see
 :func:`_source_hash`), beside JAX's compiled programs, and nowhere when that cache
-is switched off (``BEAMCONTACT_CACHE_DIR=""``) or cannot be created. Numba's cache locator
+is switched off (``BEAMCONTACT_CACHE_DIR=""``) or cannot be created; the folders of
+other source versions unused for 30 days are removed. Numba's cache locator
 reads ``numba.config.CACHE_DIR`` once, when a function is decorated, so the folder is set
 just for our decorations and the setting of other Numba users in the process is restored.
 
@@ -17,6 +18,9 @@ Importing this module imports neither JAX nor matplotlib.
 """
 
 import hashlib
+import os
+import shutil
+import time
 from pathlib import Path
 
 import numba
@@ -39,18 +43,43 @@ def _source_hash() -> str:
     return digest.hexdigest()[:16]
 
 
+# a folder of compiled kernels that no version of the sources used for this long is removed
+# (each upgrade or edit of the kernels starts a new folder of about 10 MB)
+STALE_AFTER_S = 30 * 24 * 3600.0
+
+
 def _numba_cache_dir() -> Path | None:
-    """``numba/<hash of the kernel sources>`` inside the cache folder, created; None when
-    off or not creatable."""
+    """``numba/<hash of the kernel sources>`` inside the cache folder, created and marked
+    as used now; the folders of other versions unused for ``STALE_AFTER_S`` are removed.
+    None when off or not creatable."""
     base = cache_dir()
     if base is None:
         return None
     path = base / "numba" / _source_hash()
     try:
         path.mkdir(parents=True, exist_ok=True)
+        os.utime(path)
     except OSError:
         return None
+    _remove_stale(path)
     return path
+
+
+def _remove_stale(current: Path) -> None:
+    """Remove the sibling folders of ``current`` not used for ``STALE_AFTER_S`` (best
+    effort: another process may be removing or using them)."""
+    now = time.time()
+    try:
+        siblings = [p for p in current.parent.iterdir() if p.is_dir() and p != current]
+    except OSError:
+        return
+    for folder in siblings:
+        try:
+            stale = now - folder.stat().st_mtime > STALE_AFTER_S
+        except OSError:
+            continue
+        if stale:
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 _CACHE_DIR = _numba_cache_dir()

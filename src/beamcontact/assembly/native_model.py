@@ -102,7 +102,9 @@ class NativeModel(NamedTuple):
 
 
 def _f64(a) -> np.ndarray:
-    return np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+    """A writable float64 copy (NumPy views of JAX arrays are read-only, and Numba
+    compiles every kernel again for read-only arguments)."""
+    return np.array(a, dtype=np.float64, order="C", copy=True)
 
 
 def _pad_last(a: np.ndarray, n: int) -> np.ndarray:

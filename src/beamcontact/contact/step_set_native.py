@@ -89,14 +89,16 @@ def native_contact_elements(ce) -> NativeContactElements:
     """The flat host arrays of a :class:`~beamcontact.contact.points.ContactElements`
     (JAX or NumPy fields; C-contiguous copies, float64 / int64 / bool)."""
 
+    # writable copies: NumPy views of JAX arrays are read-only, and Numba compiles a
+    # kernel again for each combination of read-only arguments
     def f64(a):
-        return np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+        return np.array(a, dtype=np.float64, order="C", copy=True)
 
     def i64(a):
-        return np.ascontiguousarray(np.asarray(a, dtype=np.int64))
+        return np.array(a, dtype=np.int64, order="C", copy=True)
 
     def flag(a):
-        return np.ascontiguousarray(np.asarray(a, dtype=np.bool_))
+        return np.array(a, dtype=np.bool_, order="C", copy=True)
 
     return NativeContactElements(
         conn=i64(ce.conn), loc_valid=flag(ce.loc_valid), R=f64(ce.R), w=f64(ce.w),
@@ -261,6 +263,58 @@ def _pair_points(field, conn, R, pairs):
 
 
 @njit
+def _point_boxes(P, pairs, E):
+    """(E, 4) boxes (lo_x, lo_y, hi_x, hi_y) of the contact points P of the elements that
+    occur in ``pairs`` (the others are left as they are)."""
+    box = np.empty((E, 4))
+    for c in range(pairs.shape[0]):
+        for side in range(2):
+            e = pairs[c, side]
+            if e < E:
+                lo_x, lo_y, hi_x, hi_y = math.inf, math.inf, -math.inf, -math.inf
+                for i in range(P.shape[1]):
+                    lo_x, hi_x = min(lo_x, P[e, i, 0]), max(hi_x, P[e, i, 0])
+                    lo_y, hi_y = min(lo_y, P[e, i, 1]), max(hi_y, P[e, i, 1])
+                box[e, 0], box[e, 1], box[e, 2], box[e, 3] = lo_x, lo_y, hi_x, hi_y
+    return box
+
+
+@njit
+def _box_distance(a, b):
+    """The distance of two boxes (lo_x, lo_y, hi_x, hi_y) (a point is a box), computed
+    as a point pair's sqrt(rx^2 + ry^2): every operation rounds monotonically, so it is
+    at most the distance computed for any point of one box and any of the other."""
+    return _corner_distance(a[0], a[1], a[2], a[3], b)
+
+
+@njit
+def _corner_distance(lo_x, lo_y, hi_x, hi_y, b):
+    """:func:`_box_distance` of the box (lo_x, lo_y, hi_x, hi_y) and the box b."""
+    dx = max(lo_x - b[2], b[0] - hi_x, 0.0)
+    dy = max(lo_y - b[3], b[1] - hi_y, 0.0)
+    return math.sqrt(dx * dx + dy * dy)
+
+
+@njit
+def _ascending(keys):
+    """The order (int64) of ``keys`` ascending: an insertion sort, for the few blocks of
+    a step (np.argsort compiles a quicksort of seconds)."""
+    order = np.empty(keys.shape[0], dtype=np.int64)
+    for c in range(keys.shape[0]):
+        k = c
+        while k > 0 and keys[order[k - 1]] > keys[c]:
+            order[k] = order[k - 1]
+            k -= 1
+        order[k] = c
+    return order
+
+
+# the bounds that let a loop skip point pairs are lowered by this relative margin, so that
+# a skipped pair is one whose computed value could not have counted
+_BOUND_MARGIN = 1e-9
+
+
+@njit
 def block_distances(x, ne, pairs):
     """Centre-line distances (P, n_s, n_s) of all point pairs of the blocks ``pairs``
     (real pairs only) at x, +inf for the pairs that may not interact
@@ -328,12 +382,31 @@ def arc_length_weights(ne, e1, e2):
 @njit
 def near_blocks(x, ne, pairs, limit):
     """The blocks of ``pairs`` with a point pair closer than ``limit`` (centre-line
-    distance at x), in their original order (:func:`blocks.near_blocks`: its real rows)."""
-    d = block_distances(x, ne, pairs)
+    distance at x), in their original order (:func:`blocks.near_blocks`: its real rows).
+    A block whose point boxes are ``limit`` apart is dropped unseen, and the search of a
+    block stops at its first close pair."""
+    beam, allowed, s, exclusion = ne.beam, ne.allowed, ne.s, ne.exclusion
+    E, ns = ne.conn.shape[0], ne.R.shape[1]
+    P = _pair_points(x, ne.conn, ne.R, pairs)
+    box = _point_boxes(P, pairs, E)
     keep = np.zeros(pairs.shape[0], dtype=np.bool_)
     for c in range(pairs.shape[0]):
-        # some pair with d < limit: the JAX twin's min(d) < limit
-        keep[c] = np.min(d[c]) < limit
+        e1, e2 = pairs[c, 0], pairs[c, 1]
+        if _box_distance(box[e1], box[e2]) >= limit:
+            continue
+        whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
+        for i in range(ns):
+            for j in range(ns):
+                rx = P[e1, i, 0] - P[e2, j, 0]
+                ry = P[e1, i, 1] - P[e2, j, 1]
+                # the JAX twin's min(d) < limit, d = inf for pairs that may not interact
+                if (math.sqrt(rx * rx + ry * ry) < limit
+                        and (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2,
+                                                       i, j))):
+                    keep[c] = True
+                    break
+            if keep[c]:
+                break
     return pairs[keep].copy()
 
 
@@ -506,16 +579,46 @@ def approach_ratio(x0, fields, ne, pairs, slack):
         D = _pair_points(fields[f], conn, R, pairs)
         dxs[f] = D[:, :, 0]
         dys[f] = D[:, :, 1]
-    ratio = 0.0
-    floor = 1e-2 * slack
+    # bounds: the room of a pair is at least the distance of the point boxes less R1 + R2
+    # plus s, its approach at most the sum over the fields of the two points' motions
+    box = _point_boxes(X, pairs, E)
+    motion = np.zeros((E, ns))
+    motion_max = np.zeros(E)
     for c in range(pairs.shape[0]):
+        for side in range(2):
+            e = pairs[c, side]
+            if e < E:
+                for i in range(ns):
+                    m = 0.0
+                    for f in range(F):
+                        m += math.sqrt(dxs[f, e, i] ** 2 + dys[f, e, i] ** 2)
+                    motion[e, i] = m * (1.0 + _BOUND_MARGIN)
+                    motion_max[e] = max(motion_max[e], motion[e, i])
+    floor = 1e-2 * slack
+    # the blocks in the order of their bound, largest first: the blocks after the first
+    # ones whose bound is below the ratio found are skipped unseen
+    bound = np.zeros(pairs.shape[0])
+    for c in range(pairs.shape[0]):
+        e1, e2 = pairs[c, 0], pairs[c, 1]
+        if e1 < E and e2 < E:
+            room = _room_bound(box[e1], box[e2], radius[e1] + radius[e2], slack)
+            bound[c] = (math.inf if room <= floor
+                        else (motion_max[e1] + motion_max[e2]) / room)
+    ratio = 0.0
+    for c in _ascending(-bound):
         e1, e2 = pairs[c, 0], pairs[c, 1]
         if e1 >= E or e2 >= E:
             continue
+        if bound[c] <= ratio:
+            break
         r12 = radius[e1] + radius[e2]
         # two beams: every pair may interact, no test per pair
         whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
         for i in range(ns):
+            room_i = (_corner_distance(xx[e1, i], xy[e1, i], xx[e1, i], xy[e1, i], box[e2])
+                      * (1.0 - _BOUND_MARGIN) - r12 + slack)
+            if room_i > floor and (motion[e1, i] + motion_max[e2]) <= ratio * room_i:
+                continue  # no pair of this row can exceed the ratio found
             for j in range(ns):
                 if not (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)):
                     continue
@@ -523,18 +626,33 @@ def approach_ratio(x0, fields, ne, pairs, slack):
                 ry = xy[e1, i] - xy[e2, j]
                 d = math.sqrt(rx * rx + ry * ry)
                 room = d - r12 + slack
-                # n = r / max(d, 1e-300), two divisions as the JAX twin (not one reciprocal)
+                # pairs with room <= s / 100 are in contact: left to the law
+                if not room > floor:
+                    continue
+                # the approach along n = r / max(d, 1e-300) times max(d, 1e-300): the
+                # divisions only for a pair that may raise the ratio
                 dd = max(d, 1e-300)
-                nx, ny = rx / dd, ry / dd
-                approach = 0.0
+                scaled = 0.0
                 for f in range(F):
                     dx = dxs[f, e1, i] - dxs[f, e2, j]
                     dy = dys[f, e1, i] - dys[f, e2, j]
-                    approach += max(-(nx * dx + ny * dy), 0.0)
-                # pairs with room <= s / 100 are in contact: left to the law
-                if room > floor:
+                    scaled += max(-(rx * dx + ry * dy), 0.0)
+                if scaled > ratio * room * dd * (1.0 - _BOUND_MARGIN):
+                    # as the JAX twin: n by two divisions, the approach over the room
+                    nx, ny = rx / dd, ry / dd
+                    approach = 0.0
+                    for f in range(F):
+                        dx = dxs[f, e1, i] - dxs[f, e2, j]
+                        dy = dys[f, e1, i] - dys[f, e2, j]
+                        approach += max(-(nx * dx + ny * dy), 0.0)
                     ratio = max(ratio, approach / room)
     return ratio
+
+
+@njit
+def _room_bound(a, b, r12, slack):
+    """A lower bound of the room d - R1 - R2 + s of the point pairs of two boxes."""
+    return _box_distance(a, b) * (1.0 - _BOUND_MARGIN) - r12 + slack
 
 
 @njit
@@ -576,25 +694,42 @@ def missed_blocks(x, ne, frozen_pairs, reach, interaction):
     :func:`box_gap_lower_bound`. Rows of ``frozen_pairs`` at or beyond E (the JAX
     padding) are ignored; its order does not matter."""
     E = ne.conn.shape[0]
+    beam, allowed, s, exclusion = ne.beam, ne.allowed, ne.s, ne.exclusion
+    ns = ne.R.shape[1]
     frozen = np.zeros((E, E), dtype=np.bool_)
     for c in range(frozen_pairs.shape[0]):
         e1, e2 = frozen_pairs[c, 0], frozen_pairs[c, 1]
         if e1 < E and e2 < E:
             frozen[e1, e2] = True
     pairs = candidate_pairs(x, ne, reach)
-    d = block_distances(x, ne, pairs)
+    P = _pair_points(x, ne.conn, ne.R, pairs)
+    box = _point_boxes(P, pairs, E)
     radius = ne.radius
+    # the blocks nearest first; a block is skipped unseen when its point boxes are
+    # further apart than the gap found and, if not frozen, than the interaction distance
+    near = np.empty(pairs.shape[0])
+    for c in range(pairs.shape[0]):
+        near[c] = _box_distance(box[pairs[c, 0]], box[pairs[c, 1]]) * (1.0 - _BOUND_MARGIN)
     missing = False
     gap = math.inf
-    for c in range(pairs.shape[0]):
+    for c in _ascending(near):
         e1, e2 = pairs[c, 0], pairs[c, 1]
         r12 = radius[e1] + radius[e2]
+        check = not (missing or frozen[e1, e2])
+        if near[c] - r12 >= gap and not (check and near[c] < interaction):
+            continue
+        whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
         nearest = math.inf
-        for i in range(d.shape[1]):
-            for j in range(d.shape[2]):
-                nearest = min(nearest, d[c, i, j])
-                gap = min(gap, d[c, i, j] - r12)
-        if nearest < interaction and not frozen[e1, e2]:
+        for i in range(ns):
+            for j in range(ns):
+                rx = P[e1, i, 0] - P[e2, j, 0]
+                ry = P[e1, i, 1] - P[e2, j, 1]
+                d = math.sqrt(rx * rx + ry * ry)
+                if not (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)):
+                    d = math.inf
+                nearest = min(nearest, d)
+                gap = min(gap, d - r12)
+        if check and nearest < interaction:
             missing = True
     if not np.isfinite(gap):
         gap = box_gap_lower_bound(x, ne, reach)

@@ -13,8 +13,11 @@ reported in the order of :mod:`~beamcontact.dynamics.report`. The step controlle
 energy account and the rejection rules are the driver's (dynamics/driver.py), shared with
 the JAX engine.
 
-Contact has no native attempt yet: :func:`~beamcontact.setup.start.choose_engine` runs
-cases with contact on the JAX engine.
+Contact enters as the frozen set of the step (:class:`_NativeContact`, the twin of
+contact/step_set.py): its blocks are added to the residual and the tangent at every
+Newton iterate (:func:`contact_blocks`); the contact energy of the solution is the one of
+the last iterate's evaluation, and the energy of the set at the start of the step is
+evaluated only when no earlier attempt knows it (the energy account's set-change jump).
 """
 
 from dataclasses import dataclass, replace
@@ -102,14 +105,16 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
                       r_layout, k_blocks):
     """The HHT residual at u with supports applied (global numbering, into r), f_pot(u)
     (contact included) into r_pot, and the tangent assembled into the bordered arrays
-    with its residual in layout order (r_layout); returns ||r||."""
+    with its residual in layout order (r_layout); returns (||r||, the contact energy at
+    u)."""
     nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r,
                              r_pot, k_blocks)
     bordered.zero(band, B, C, D)
     bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
+    e_contact = 0.0
     if contact[2].shape[0] > 0:
-        contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha, position, band,
-                       B, C, D, kl, ku, r_pot, r)
+        e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha,
+                                   position, band, B, C, D, kl, ku, r_pot, r)
     for i in range(r.shape[0]):
         r_layout[position[i]] = r[i]
     bordered.apply_supports(band, B, C, D, kl, ku, free_layout, r_layout)
@@ -117,21 +122,22 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
     for i in range(r.shape[0]):
         r[i] = r_layout[position[i]]
         norm += r[i] * r[i]
-    return np.sqrt(norm)
+    return np.sqrt(norm), e_contact
 
 
 @njit
 def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s, kl,
             ku, u_n, v_n, a_n, f_pot_n, theta_n, t_n, h, alpha, rtol, utol, dt_ref,
-            total_mass, max_iterations, diverge_after, u, v, a, f_pot, theta, tangent, values,
-            counts):
+            total_mass, max_iterations, diverge_after, e_contact_n, u, v, a, f_pot, theta,
+            tangent, values, counts):
     """One attempt at a step h from (u_n, v_n, a_n, f_pot_n, theta_n, t_n) into (u, v, a,
     f_pot, theta, tangent) and the report vectors ``values``, ``counts``
     (:mod:`~beamcontact.dynamics.report`; meaningful state only when converged).
 
     ``contact``: the frozen contact set, (conn, R, pairs, W, R12, amplitudes, law, m,
     q_reg, cutoff) as :func:`contact_blocks` takes them (no pairs: no contact); the step h
-    is already shortened by the conservative advancement. The contact checks after the
+    is already shortened by the conservative advancement; ``e_contact_n`` is its energy
+    at u_n when the caller knows it (NaN: computed here). The contact checks after the
     step (approach, gap, missed blocks) are the caller's."""
     n = u_n.shape[0]
     beta = 0.25 * (1.0 - alpha) ** 2
@@ -152,8 +158,8 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
                          nm.block_dofs.shape[1]))
     args = (position, positions, free_layout, band, B, C, D, kl, ku, r, f_pot, r_layout,
             k_blocks)
-    norm0 = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
-                              t_n, *args)
+    norm0, e_contact = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
+                                         f_pot_n, theta_n, t_n, *args)
     done, failed = norm0 <= atol, not np.isfinite(norm0)
     k, rn = 0, norm0
     while not done and not failed and k < max_iterations:
@@ -166,8 +172,9 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
             u[i] += d
             step = max(step, abs(d))
             finite = finite and np.isfinite(d)
-        rn = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
-                               t_n, *args)
+        # the last evaluation is at the solution: its contact energy is the step's
+        rn, e_contact = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
+                                          f_pot_n, theta_n, t_n, *args)
         converged = rn <= rtol * norm0 + atol or step <= utol_h
         diverged = diverge_after > 0 and k + 1 >= diverge_after and rn > norm0
         failed = not np.isfinite(rn) or not finite or diverged
@@ -192,8 +199,9 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     values[V_STRAIN], values[V_GRAVITY], values[V_EXT] = e_strain, e_gravity, e_ext
     values[V_KIN], values[V_PX], values[V_PY] = e_kin, p[0], p[1]
     if contact[2].shape[0] > 0:
-        values[V_CONTACT] = contact_energy(nm, contact, u)
-        values[V_EC_BEFORE] = contact_energy(nm, contact, u_n)
+        values[V_CONTACT] = e_contact
+        values[V_EC_BEFORE] = (contact_energy(nm, contact, u_n) if np.isnan(e_contact_n)
+                               else e_contact_n)
     counts[:] = 0
     counts[C_FLAGS] = CONVERGED if done else 0
     counts[C_ITERATIONS] = k
@@ -282,23 +290,23 @@ class _NativeContact:
         self.reach = float(contact.reach)
         self.interaction = float(law.interaction_distance())
         self.slack = float(law.advance_slack())
+        self._arc_weights: dict[tuple[int, int], np.ndarray] = {}
         self.points = law.closest_pairs and law.pairing == "points"
         self.zones = law.closest_pairs and law.pairing == "zones"
         if law.closest_pairs:
             self.code, self.params = blocks_native.LAW_PENALTY, (0.0, 0.0, 0.0)
-            self._amplitude = lambda r1, r2, b12: float(law.penalty)
+            self._amplitude = lambda r1, r2, b12: np.full(r1.shape, float(law.penalty))
         else:
             self.code = blocks_native.LAW_CG
             self.params = (float(law.exponent), float(law.q_reg), float(law.cutoff))
-            self._amplitude = lambda r1, r2, b12: float(
-                law.k * b12 * cgn.cg_constant(float(law.exponent), r1, r2))
+            self._amplitude = lambda r1, r2, b12: (float(law.k) * b12) * cgn.cg_constants(
+                float(law.exponent), r1, r2)
 
     def _frozen(self, pairs: np.ndarray, W: np.ndarray) -> tuple:
         ne = self.ne
         r1, r2 = ne.radius[pairs[:, 0]], ne.radius[pairs[:, 1]]
         b12 = ne.beta[pairs[:, 0]] * ne.beta[pairs[:, 1]]
-        amps = np.array([self._amplitude(a, b, c) for a, b, c in zip(r1, r2, b12,
-                                                                      strict=True)])
+        amps = self._amplitude(r1, r2, b12)
         return (ne.conn, ne.R, np.ascontiguousarray(pairs, dtype=np.int64),
                 np.ascontiguousarray(W, dtype=np.float64), r1 + r2, amps, self.code,
                 *self.params)
@@ -314,9 +322,13 @@ class _NativeContact:
             q = ssn.block_gaps(x, ne, pairs)
             cs = self.problem.closest_pair_set(pairs, q, motion)
             return np.asarray(cs.pairs), np.asarray(cs.W)
+        # the weights of an integrated law are those of the reference arc length: the
+        # same for a block at every step, so each is computed once
         W = np.empty((pairs.shape[0], ne.R.shape[1], ne.R.shape[1]))
-        for p in range(pairs.shape[0]):
-            W[p] = ssn.arc_length_weights(ne, pairs[p, 0], pairs[p, 1])
+        for p, block in enumerate(map(tuple, pairs.tolist())):
+            if block not in self._arc_weights:
+                self._arc_weights[block] = ssn.arc_length_weights(ne, *block)
+            W[p] = self._arc_weights[block]
         return pairs, W
 
     def set_at(self, x) -> tuple:
@@ -370,8 +382,10 @@ NO_CONTACT = (np.zeros((0, 1), np.int64), np.zeros((0, 1, 1)), np.zeros((0, 2), 
 
 
 def _host(a) -> np.ndarray:
-    """A C-contiguous float64 host copy of an array (JAX or NumPy)."""
-    return np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+    """A writable C-contiguous float64 host copy of an array (JAX or NumPy): NumPy views
+    of JAX arrays are read-only, and Numba compiles every kernel again for read-only
+    arguments."""
+    return np.array(a, dtype=np.float64, order="C", copy=True)
 
 
 class NativeEngine:
@@ -392,6 +406,22 @@ class NativeEngine:
         self.dt_ref = float(dt_ref)
         nm = self.nm
         self.total_mass = float(np.sum(nm.rho_area[:, None] * nm.wq * np.sqrt(nm.g_ref)))
+        # contact energies known from earlier attempts: (u, pairs, W, energy) of the
+        # latest states, so that a step under an unchanged set does not evaluate the
+        # energy of its start again (the same sum at the same state)
+        self._energies: list[tuple] = []
+
+    def _known_energy(self, u: np.ndarray, frozen: tuple) -> float:
+        """The contact energy of ``frozen`` at u if an earlier attempt computed it, else
+        NaN."""
+        for u_known, pairs, W, energy in self._energies:
+            if (u_known is u and np.array_equal(pairs, frozen[2])
+                    and np.array_equal(W, frozen[3])):
+                return energy
+        return np.nan
+
+    def _remember(self, u: np.ndarray, frozen: tuple, energy: float) -> None:
+        self._energies = [(u, frozen[2], frozen[3], energy)] + self._energies[:3]
 
     def host_state(self, state: DynState) -> DynState:
         """``state`` with host arrays (the initial state comes from the JAX twin)."""
@@ -418,12 +448,18 @@ class NativeEngine:
         values, counts = np.empty(len(VALUES)), np.empty(len(COUNTS), dtype=np.int64)
         sysm, lay = self.system, self.system.layout
         ar = sysm.arrays
+        has_contact = frozen[2].shape[0] > 0
+        e_before = self._known_energy(s.u, frozen) if has_contact else np.nan
         attempt(self.nm, frozen, sysm.position, sysm.block_positions, sysm.free, ar.band,
                 ar.B, ar.C, ar.D, ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u, s.v, s.a, s.f_pot,
                 s.load_state.theta, s.load_state.tangent, h_used, self.alpha,
                 self.options.rtol, self.utol, self.dt_ref, self.total_mass,
-                self.options.max_iterations, DIVERGE_AFTER, u, v, a, f_pot, theta, tangent,
-                values, counts)
+                self.options.max_iterations, DIVERGE_AFTER, e_before, u, v, a, f_pot, theta,
+                tangent, values, counts)
+        if has_contact:
+            if np.isnan(e_before):
+                self._remember(s.u, frozen, float(values[V_EC_BEFORE]))
+            self._remember(u, frozen, float(values[V_CONTACT]))
         if self._contact is not None:
             self._contact.check(chosen, s, u, self.nm.x_ref, values, counts)
         new = DynState(s.t + values[V_H], u, v, a, f_pot,
