@@ -25,7 +25,6 @@ from beamcontact.dynamics.control import EnergyAccount, total_energy
 from beamcontact.dynamics.driver import DynamicStep, solve_dynamic
 from beamcontact.dynamics.hht import DynState
 from beamcontact.dynamics.report import DIAGNOSTICS
-from beamcontact.dynamics.step import host_diagnostics
 from beamcontact.io.case import Case, CaseError, parse_case
 from beamcontact.io.results import read_last_state, write_summary
 from beamcontact.progress import Progress, ProgressInfo
@@ -316,11 +315,13 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
         return _Start(state, step0, float(last["dt_next"]), int(last["iterations_total"]),
                       int(last["cutbacks_total"]),
                       _account_from_record(last["energy_account"]), rec), begin
-    state, cs0 = begin.state, begin.contact_set
+    state = begin.state
     rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
                     DYNAMIC_COLUMNS)
-    diag0 = {**host_diagnostics(state, model, contact, cs0), "error": 0.0,
-             "E_dissipated": 0.0, "E_set_change": 0.0}
+    first = None if contact is None else contact.first_capacity(case.contact.capacity)
+    diag0 = begin.engine.energies(state, first)
+    diag0 = {**diag0, "E_total": total_energy(diag0), "error": 0.0, "E_dissipated": 0.0,
+             "E_set_change": 0.0}
     _save(rec, DynamicStep(0, 0.0, 0.0, an.dt, state, 0, 0, diag0), 0)
     rec.snapshot(0.0, state.u)
     return _Start(state, 0, an.dt, 0, 0, _account_from_record(_account_record(diag0)),

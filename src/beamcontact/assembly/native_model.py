@@ -362,6 +362,30 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
 
 
 @njit
+def inertia_force_mass_blocks(nm, u, v, f_out, m_out):
+    """The inertia force at zero acceleration (its velocity terms, eq. 29) into f_out
+    (n_dof,) and the mass matrix (translational and rotational) into the element blocks
+    of m_out (n_blocks, m, m; the load blocks zero), both overwritten, at displacement u
+    and velocity v: F_inertia(u, v, a) = f_out + M a, as
+    :func:`~beamcontact.assembly.inertia.inertia_force_and_mass`."""
+    x = _positions(nm.x_ref, u)
+    v2 = v.reshape(nm.x_ref.shape)
+    n_el, n = nm.conn.shape
+    x_e, v_e, a_e = np.empty((n, 2)), np.empty((n, 2)), np.zeros((n, 2))
+    f_e = np.empty(2 * n)
+    jx, jv = np.empty((2 * n, 2 * n)), np.empty((2 * n, 2 * n))
+    f_out[:] = 0.0
+    m_out[:] = 0.0
+    for e in range(n_el):
+        _gather(x, nm.conn[e], x_e)
+        _gather(v2, nm.conn[e], v_e)
+        inertia_native.element_inertia_jacobians(x_e, v_e, a_e, nm.R[e], nm.dR[e], nm.wq[e],
+                                                 nm.g_ref[e], nm.rho_area[e],
+                                                 nm.rho_inertia[e], f_e, jx, jv, m_out[e])
+        _scatter_add(nm.block_dofs[e], f_e, f_out)
+
+
+@njit
 def kinetic_energy_momentum(nm, u, v):
     """Kinetic energy (translation and rotation of the sections, eq. 18) and linear
     momentum (2,) at displacement u and velocity v (n_dof,), as

@@ -26,6 +26,7 @@ import numpy as np
 
 from beamcontact._native import njit
 from beamcontact.assembly import native_model as nmod
+from beamcontact.assembly.model import LoadState
 from beamcontact.contact import blocks_native
 from beamcontact.contact import step_set_native as ssn
 from beamcontact.contact.laws import coarse_grained_native as cgn
@@ -208,6 +209,35 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
 
 
 @njit
+def initial_acceleration(nm, contact, u, v, theta, tangent, position, positions,
+                         free_layout, band, B, C, D, ipiv, ipiv_s, kl, ku, f_pot, a):
+    """The consistent initial acceleration (paper Sec. 4, as
+    :func:`~beamcontact.dynamics.hht.initial_state`): f_pot(u) with the contact of the
+    frozen set ``contact`` into f_pot, and a from M(u) a = -(F_inertia(u, v, 0) + f_pot)
+    on the free dofs (0 on the supported ones) into a."""
+    n = u.shape[0]
+    blocks = np.empty((nm.block_dofs.shape[0], nm.block_dofs.shape[1],
+                       nm.block_dofs.shape[1]))
+    nmod.potential_residual_blocks(nm, u, 1.0, theta, tangent, f_pot, blocks)
+    if contact[2].shape[0] > 0:
+        no = np.empty((0, 0))
+        contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0, position, no, no, no,
+                       no, -1, -1, f_pot, np.zeros(n))
+    f0 = np.empty(n)
+    nmod.inertia_force_mass_blocks(nm, u, v, f0, blocks)
+    bordered.zero(band, B, C, D)
+    bordered.add_blocks(band, B, C, D, kl, ku, positions, blocks)
+    r_layout = np.empty(n)
+    for i in range(n):
+        r_layout[position[i]] = -(f0[i] + f_pot[i])
+    bordered.apply_supports(band, B, C, D, kl, ku, free_layout, r_layout)
+    a_layout = np.empty(n)
+    bordered.factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, a_layout)
+    for i in range(n):
+        a[i] = a_layout[position[i]]
+
+
+@njit
 def contact_energy(nm, contact, u):
     """The energy of the frozen contact set at displacement u."""
     n = u.shape[0]
@@ -358,6 +388,10 @@ class _NativeContact:
         h_used = h * min(1.0, ADVANCE_FRACTION / max(ratio, 1e-300))
         return _Chosen(self._frozen(pairs, W), h_used, x0, x_pred, motion, int(count))
 
+    def min_gap(self, x: np.ndarray, frozen: tuple) -> float:
+        """The smallest surface gap at x (the post-step check's)."""
+        return ssn.missed_blocks(x, self.ne, frozen[2], self.reach, self.interaction)[2]
+
     def check(self, chosen: _Chosen, s: DynState, u, x_ref, values, counts) -> None:
         """The checks after the step (:func:`~beamcontact.contact.step_set.after_step`)
         into the report vectors."""
@@ -466,19 +500,42 @@ class NativeEngine:
                        replace(s.load_state, theta=theta, tangent=tangent))
         return Attempt(new, *read_report(values.tolist(), counts.tolist()))
 
+    def initial_state(self, v0: np.ndarray) -> DynState:
+        """The state at t = 0: zero displacement, the velocity v0 (n_dof,) on the free
+        dofs, the load state of the reference configuration and the consistent
+        acceleration under the contact set there (:func:`initial_acceleration`)."""
+        nm, sysm = self.nm, self.system
+        lay, ar = sysm.layout, sysm.arrays
+        u = np.zeros(nm.n_dof)
+        v = np.array(v0, dtype=np.float64) * nm.free
+        # zero rotation and the reference tangent at every load point
+        tangent = np.einsum("lk,lkd->ld", nm.load_dR, nm.x_ref[nm.load_conn])
+        theta = np.zeros(tangent.shape[0])
+        frozen = NO_CONTACT if self._contact is None else self._contact.set_at(nm.x_ref)
+        f_pot, a = np.empty(nm.n_dof), np.empty(nm.n_dof)
+        initial_acceleration(nm, frozen, u, v, theta, tangent, sysm.position,
+                             sysm.block_positions, sysm.free, ar.band, ar.B, ar.C, ar.D,
+                             ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, f_pot, a)
+        return DynState(0.0, u, v, a, f_pot, LoadState(theta=theta, tangent=tangent))
+
     def energies(self, state: DynState, capacity) -> dict:
         """The diagnostics of ``state`` under the contact set at its configuration (the
-        energy account's start)."""
+        energy account's start, and the first row of a run): energies, momentum and
+        the smallest surface gap (NaN without contact)."""
         del capacity
         s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
         values = np.zeros(len(VALUES))
         state_diagnostics(self.nm, s.u, s.v, s.load_state.theta, s.load_state.tangent,
                           values)
+        gap = np.nan
         if self._contact is not None:
-            frozen = self._contact.set_at(self.nm.x_ref + s.u.reshape(-1, 2))
+            x = self.nm.x_ref + s.u.reshape(-1, 2)
+            frozen = self._contact.set_at(x)
             values[V_CONTACT] = contact_energy(self.nm, frozen, s.u)
-        return {k: float(values[_V[k]]) for k in
-                ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y")}
+            gap = self._contact.min_gap(x, frozen)
+        return {**{k: float(values[_V[k]]) for k in
+                   ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y")},
+                "min_gap": float(gap)}
 
     @staticmethod
     def at_time(state: DynState, t: float) -> DynState:

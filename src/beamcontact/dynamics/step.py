@@ -23,7 +23,6 @@ from beamcontact.contact.blocks import ContactSet, FrozenContact
 from beamcontact.contact.broadphase import SearchCapacity
 from beamcontact.contact.problem import ContactProblem, ContactSearch, candidate_gaps, freeze
 from beamcontact.contact.step_set import advanced_step, after_step, chosen_in_step, step_set
-from beamcontact.dynamics.control import total_energy
 from beamcontact.dynamics.hht import DynState, hht_step, predictor
 from beamcontact.dynamics.report import (
     COUNTS,
@@ -43,19 +42,6 @@ def diagnostics(state: DynState, model: Model, contact: FrozenContact | None = N
     e_kin, p = kinetic_energy_and_momentum(state.u, state.v, model)
     e_con = contact_energy_of(state.u, model, contact)
     return {**e, "E_contact": e_con, "E_kin": e_kin, "p_x": p[0], "p_y": p[1]}
-
-
-def host_diagnostics(state: DynState, model: Model, contact: ContactProblem | None = None,
-                     cs=None) -> dict:
-    """:func:`diagnostics` as Python floats, with E_total and min_gap."""
-    if contact is None:
-        d = {k: float(v) for k, v in diagnostics(state, model).items()}
-        d["min_gap"] = float("nan")
-    else:
-        d = {k: float(v) for k, v in diagnostics(state, model, freeze(contact, cs)).items()}
-        d["min_gap"] = contact.min_gap(model.x_ref + state.u.reshape(-1, 2), cs)
-    d["E_total"] = total_energy(d)
-    return d
 
 
 @persistent_jit(static_argnames=("max_iterations", "capacity"))
@@ -215,11 +201,16 @@ class JaxEngine:
 
     def energies(self, state: DynState, capacity: SearchCapacity | None) -> dict:
         """The diagnostics (:data:`~beamcontact.dynamics.report.DIAGNOSTICS`) of ``state``
-        under the contact set at its configuration (the energy account's start)."""
-        cs = None if self.contact is None else self.contact.grown_set(
-            positions(state.u, self.model), 0.0, capacity)[0]
-        return {k: float(v) for k, v in
-                diagnostics(state, self.model, freeze(self.contact, cs)).items()}
+        under the contact set at its configuration (the energy account's start, and the
+        first row of a run), with the smallest surface gap (NaN without contact)."""
+        if self.contact is None:
+            return {**{k: float(v) for k, v in diagnostics(state, self.model).items()},
+                    "min_gap": float("nan")}
+        x = positions(state.u, self.model)
+        cs = self.contact.grown_set(x, 0.0, capacity)[0]
+        return {**{k: float(v) for k, v in
+                   diagnostics(state, self.model, freeze(self.contact, cs)).items()},
+                "min_gap": self.contact.min_gap(x, cs)}
 
     def at_time(self, state: DynState, t: float) -> DynState:
         """``state`` with its time set to t (the driver snaps times onto its grid)."""

@@ -39,14 +39,12 @@ class Prepared:
 @dataclass(frozen=True, eq=False)
 class DynamicStart:
     """A dynamic run at t = 0: the prepared case, the engine of its time loop, the step
-    controller's settings and the initial state (with its contact set, None without
-    contact)."""
+    controller's settings and the initial state."""
 
     prepared: Prepared
     engine: object
     control: object
     state: object
-    contact_set: object
 
 
 def prepare(case: Case) -> Prepared:
@@ -73,36 +71,36 @@ def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
     """The engine (:func:`choose_engine`), the step control and the state at t = 0 of a
     dynamic case: zero displacements, the beams' initial velocities, consistent
     accelerations under the contact set of the reference configuration (``initial``
-    False: no state, for a run that continues a saved one)."""
-    import jax.numpy as jnp
-
-    from beamcontact.assembly.model import initial_load_state
-    from beamcontact.contact.problem import freeze
-    from beamcontact.dynamics.hht import initial_state
-    from beamcontact.dynamics.step import JaxEngine
+    False: no state, for a run that continues a saved one). The native engine makes its
+    own state (no JAX program runs)."""
     from beamcontact.setup.model import uniform_velocities
 
     case, model, contact = prepared.case, prepared.model, prepared.contact
     an = case.analysis
-    state = cs0 = None
-    if initial:
-        u0 = jnp.zeros(model.n_dof)
-        v0 = jnp.asarray(uniform_velocities(prepared.disc,
-                                            [b.initial_velocity for b in case.beams]))
-        cs0 = None if contact is None else contact.grown_set(
-            model.x_ref, 0.0, contact.first_capacity(case.contact.capacity))[0]
-        state = initial_state(u0, v0, model, initial_load_state(model), freeze(contact, cs0))
+    v0 = uniform_velocities(prepared.disc, [b.initial_velocity for b in case.beams])
     name, _ = choose_engine(case, None if contact is None else contact.law)
     if name == "native":
         from beamcontact.dynamics.native_step import NativeEngine
 
         engine = NativeEngine(model, an.alpha, prepared.options, prepared.length, an.dt,
                               contact)
-        state = None if state is None else engine.host_state(state)
-    else:
-        engine = JaxEngine(model, contact, an.alpha, prepared.options, prepared.length,
-                           an.dt)
-    return DynamicStart(prepared, engine, step_control(case), state, cs0)
+        state = engine.initial_state(v0) if initial else None
+        return DynamicStart(prepared, engine, step_control(case), state)
+    import jax.numpy as jnp
+
+    from beamcontact.assembly.model import initial_load_state
+    from beamcontact.contact.problem import freeze
+    from beamcontact.dynamics.hht import initial_state
+    from beamcontact.dynamics.step import JaxEngine
+
+    state = None
+    if initial:
+        cs0 = None if contact is None else contact.grown_set(
+            model.x_ref, 0.0, contact.first_capacity(case.contact.capacity))[0]
+        state = initial_state(jnp.zeros(model.n_dof), jnp.asarray(v0), model,
+                              initial_load_state(model), freeze(contact, cs0))
+    engine = JaxEngine(model, contact, an.alpha, prepared.options, prepared.length, an.dt)
+    return DynamicStart(prepared, engine, step_control(case), state)
 
 
 def step_control(case: Case):
