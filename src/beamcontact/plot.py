@@ -157,7 +157,9 @@ def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str
     matplotlib draws the axes, ticks and title once; every frame is that background with
     the beams drawn on it by Pillow, through the axes' data-to-pixel transform. Redrawing
     the whole figure per frame with matplotlib cost about 100 ms a frame (10 s for the
-    100 frames of a default run); this costs a few ms.
+    100 frames of a default run); this costs a few ms. The background is reduced to a
+    palette once, with the beam colours and black for the label added to it, and the
+    frames are drawn in palette indices: quantising every frame cost 70 % of the time.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image, ImageDraw, ImageFont
@@ -181,18 +183,27 @@ def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str
     label_at = (box.x0 + 0.02 * box.width, height - (box.y0 + 0.95 * box.height))
     font = ImageFont.load_default(size=9 * dpi / 72)
     colours = [tuple(int(255 * c) for c in colormaps["tab10"](k)[:3])
-               for k in range(len(frames[0][1]))]
+               for k in range(len(frames[0][1]))] + [(0, 0, 0)]
+    # the background's own colours first, then one index per beam and black
+    n_own = 255 - len(colours)
+    base = background.quantize(colors=min(64, n_own), method=Image.Quantize.MEDIANCUT)
+    palette = base.getpalette()[:3 * n_own]
+    palette += [0] * (3 * n_own - len(palette))
+    for colour in colours:
+        palette += list(colour)
+    base.putpalette(palette)
+    index = [n_own + k for k in range(len(colours))]
     width = max(1, round(3 * dpi / 72))  # matplotlib's lw = 3 points
     images = []
     for t, beams in frames:
-        image = background.copy()
+        image = base.copy()
         draw = ImageDraw.Draw(image)
-        for pts, colour in zip(beams, colours, strict=True):
+        for pts, colour in zip(beams, index[:-1], strict=True):
             xy = ax.transData.transform(pts)
             xy[:, 1] = height - xy[:, 1]  # Pillow's rows run downwards
             draw.line([tuple(p) for p in xy], fill=colour, width=width, joint="curve")
-        draw.text(label_at, f"t = {t:.3f} s", fill=(0, 0, 0), font=font)
-        images.append(image.quantize(colors=64, method=Image.Quantize.MEDIANCUT))
+        draw.text(label_at, f"t = {t:.3f} s", fill=index[-1], font=font)
+        images.append(image)
     images[0].save(path, save_all=True, append_images=images[1:],
                    duration=round(1000 / fps), loop=0)
 

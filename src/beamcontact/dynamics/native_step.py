@@ -292,6 +292,36 @@ def contact_blocks(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
     return energy
 
 
+@njit
+def _predictor(x_ref, u, v, a, h, motion_factor):
+    """(motion bound, x at the start, x at the predictor) of a step h: the bound of
+    :func:`~beamcontact.dynamics.step.fused_attempt`, motion_factor 2 sqrt(2) (max|v| h +
+    max|a| h^2 / 2), and the control points (n_cp, 2)."""
+    v_max = a_max = 0.0
+    for i in range(u.shape[0]):
+        v_max = max(v_max, abs(v[i]))
+        a_max = max(a_max, abs(a[i]))
+    motion = motion_factor * 2.0 * np.sqrt(2.0) * (v_max * h + 0.5 * a_max * h * h)
+    x0, x_pred = np.empty_like(x_ref), np.empty_like(x_ref)
+    c = 0.5 * h * h
+    for p in range(x_ref.shape[0]):
+        for d in range(2):
+            i = 2 * p + d
+            x0[p, d] = x_ref[p, d] + u[i]
+            x_pred[p, d] = x_ref[p, d] + (u[i] + h * v[i] + c * a[i])
+    return motion, x0, x_pred
+
+
+@njit
+def _deviation(x, y):
+    """The largest distance between the points of x and y (n, 2)."""
+    worst = 0.0
+    for p in range(x.shape[0]):
+        dx, dy = x[p, 0] - y[p, 0], x[p, 1] - y[p, 1]
+        worst = max(worst, np.sqrt(dx * dx + dy * dy))
+    return worst
+
+
 @dataclass(frozen=True)
 class _Chosen:
     """The contact set of one attempt: the frozen set as :func:`attempt` takes it, the
@@ -372,10 +402,7 @@ class _NativeContact:
     def choose(self, s: DynState, h: float, motion_factor: float, x_ref) -> _Chosen:
         """The set at the predictor of a step h and the step after the advancement."""
         v2, a2 = s.v.reshape(-1, 2), s.a.reshape(-1, 2)
-        motion = motion_factor * 2.0 * np.sqrt(2.0) * (
-            np.max(np.abs(s.v)) * h + 0.5 * np.max(np.abs(s.a)) * h * h)
-        x0 = x_ref + s.u.reshape(-1, 2)
-        x_pred = x_ref + (s.u + h * s.v + 0.5 * h * h * s.a).reshape(-1, 2)
+        motion, x0, x_pred = _predictor(x_ref, s.u, s.v, s.a, h, motion_factor)
         if self.problem.law.closest_pairs:
             candidates = ssn.candidate_pairs(x_pred, self.ne, self.reach + motion)
             count = candidates.shape[0]
@@ -399,8 +426,8 @@ class _NativeContact:
         pairs = chosen.frozen[2]
         missing, count_after, gap = ssn.missed_blocks(x_new, self.ne, pairs, self.reach,
                                                       self.interaction)
-        deviation = np.max(np.linalg.norm(x_new - chosen.x_pred, axis=1))
-        missing = missing or deviation > chosen.motion + 1e-6 * self.reach
+        missing = missing or _deviation(x_new, chosen.x_pred) > chosen.motion \
+            + 1e-6 * self.reach
         values[V_GAP] = gap
         values[V_APPROACH] = ssn.step_approach_ratio(chosen.x0, x_new, self.ne, pairs,
                                                      self.slack)
