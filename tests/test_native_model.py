@@ -109,6 +109,13 @@ def _state(model, rng, angle):
     return (x + size * rng.normal(size=x.shape) - x_ref).ravel()
 
 
+def _large_rotations(model, rng):
+    """N_STATES displacements of :func:`_state`, each a rotation by 0.6-0.95 pi (the
+    caller may draw from rng between them)."""
+    for _ in range(N_STATES):
+        yield _state(model, rng, rng.uniform(0.6, 0.95) * np.pi)
+
+
 def _load_state(model, u, rng):
     """A load state a step behind u: the tangents of u turned back by up to 0.8 rad and
     their rotations continued by whole turns (theta far from the angle of the tangent)."""
@@ -229,8 +236,7 @@ def test_load_state_update_equals_jax(name):
     nm = nmod.native_arrays(model)
     rng = np.random.default_rng(7)
     worst = 0.0
-    for _ in range(N_STATES):
-        u = _state(model, rng, rng.uniform(0.6, 0.95) * np.pi)
+    for u in _large_rotations(model, rng):
         theta_n, t_n = _load_state(model, u, rng)
         ref = _update(model, jnp.asarray(u), LoadState(jnp.asarray(theta_n),
                                                        jnp.asarray(t_n)))
@@ -314,8 +320,7 @@ def test_kinetic_energy_and_momentum_equal_jax(name):
     nm = nmod.native_arrays(model)
     rng = np.random.default_rng(17)
     worst = 0.0
-    for _ in range(N_STATES):
-        u = _state(model, rng, rng.uniform(0.6, 0.95) * np.pi)
+    for u in _large_rotations(model, rng):
         v = rng.normal(size=u.size)
         T_ad, p_ad = _kinetic(jnp.asarray(u), jnp.asarray(v), model)
         T, p = nmod.kinetic_energy_momentum(nm, u, v)

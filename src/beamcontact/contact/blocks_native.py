@@ -123,7 +123,7 @@ def _add_coupling_row(k, o, Ri, R2, cols, h, count):
 
 
 @njit
-def _bounding_box(p):
+def bounding_box(p):
     """(lo_x, lo_y, hi_x, hi_y) of points p (n, 2)."""
     lo_x, lo_y, hi_x, hi_y = math.inf, math.inf, -math.inf, -math.inf
     for j in range(p.shape[0]):
@@ -196,7 +196,7 @@ def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k):
     p2 = np.empty((ns2, 2))
     _points(R1, X1, p1)
     _points(R2, X2, p2)
-    lo_x, lo_y, hi_x, hi_y = _bounding_box(p2)
+    lo_x, lo_y, hi_x, hi_y = bounding_box(p2)
     reach = pair_reach(law, R12, cutoff)
     reach2 = reach * reach * _REACH_MARGIN
     # per point j of element 2: the sums over i of (gx, gy, hxx, hxy, hyy)

@@ -48,6 +48,7 @@ from typing import NamedTuple
 import numpy as np
 
 from beamcontact._native import njit
+from beamcontact.contact.blocks_native import bounding_box
 
 # the tie rule of point_weights_on_device: two gaps are equal within RTOL max(1, |q|)
 RTOL = 1e-9
@@ -271,11 +272,7 @@ def _point_boxes(P, pairs, E):
         for side in range(2):
             e = pairs[c, side]
             if e < E:
-                lo_x, lo_y, hi_x, hi_y = math.inf, math.inf, -math.inf, -math.inf
-                for i in range(P.shape[1]):
-                    lo_x, hi_x = min(lo_x, P[e, i, 0]), max(hi_x, P[e, i, 0])
-                    lo_y, hi_y = min(lo_y, P[e, i, 1]), max(hi_y, P[e, i, 1])
-                box[e, 0], box[e, 1], box[e, 2], box[e, 3] = lo_x, lo_y, hi_x, hi_y
+                box[e, 0], box[e, 1], box[e, 2], box[e, 3] = bounding_box(P[e])
     return box
 
 
@@ -295,11 +292,19 @@ def _corner_distance(lo_x, lo_y, hi_x, hi_y, b):
     return math.sqrt(dx * dx + dy * dy)
 
 
+# blocks beyond this many are visited in their own order (an insertion sort costs the
+# square of their number)
+_SORTED_BLOCKS = 64
+
+
 @njit
 def _ascending(keys):
     """The order (int64) of ``keys`` ascending: an insertion sort, for the few blocks of
-    a step (np.argsort compiles a quicksort of seconds)."""
-    order = np.empty(keys.shape[0], dtype=np.int64)
+    a step (np.argsort compiles a quicksort of seconds); with more than _SORTED_BLOCKS
+    keys, their own order (a visiting order only: the bounds hold in any)."""
+    order = np.arange(keys.shape[0])
+    if keys.shape[0] > _SORTED_BLOCKS:
+        return order
     for c in range(keys.shape[0]):
         k = c
         while k > 0 and keys[order[k - 1]] > keys[c]:
@@ -595,8 +600,8 @@ def approach_ratio(x0, fields, ne, pairs, slack):
                     motion[e, i] = m * (1.0 + _BOUND_MARGIN)
                     motion_max[e] = max(motion_max[e], motion[e, i])
     floor = 1e-2 * slack
-    # the blocks in the order of their bound, largest first: the blocks after the first
-    # ones whose bound is below the ratio found are skipped unseen
+    # the blocks in the order of their bound, largest first: a block whose bound is below
+    # the ratio found is skipped unseen
     bound = np.zeros(pairs.shape[0])
     for c in range(pairs.shape[0]):
         e1, e2 = pairs[c, 0], pairs[c, 1]
@@ -610,7 +615,7 @@ def approach_ratio(x0, fields, ne, pairs, slack):
         if e1 >= E or e2 >= E:
             continue
         if bound[c] <= ratio:
-            break
+            continue  # no pair of this block can exceed the ratio found
         r12 = radius[e1] + radius[e2]
         # two beams: every pair may interact, no test per pair
         whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
