@@ -10,6 +10,7 @@ closed form, and the energy account must close.
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from beamcontact.dynamics.control import StepControl
@@ -42,9 +43,12 @@ class FallingMass:
     def attempt(self, state, h, motion_factor, capacity):
         t, y, v = state
         y1, v1 = y + v * h - 0.5 * self.g * h * h, v - self.g * h
-        report = {**dict.fromkeys(VALUES, 0.0), **dict.fromkeys(COUNTS[1:], 0)}
-        report.update(self._energies(y1, v1), h=h, iterations=1, min_gap=float("nan"))
-        return Attempt((t + h, y1, v1), report, StepFlags.CONVERGED)
+        report = {**dict.fromkeys(VALUES, 0.0), **self._energies(y1, v1), "h": h,
+                  "min_gap": float("nan")}
+        counts = {**dict.fromkeys(COUNTS, 0), "flags": int(StepFlags.CONVERGED),
+                  "iterations": 1}
+        return Attempt((t + h, y1, v1), np.array([report[k] for k in VALUES]),
+                       np.array([counts[k] for k in COUNTS]))
 
     def energies(self, state, capacity):
         return self._energies(state[1], state[2])

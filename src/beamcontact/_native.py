@@ -24,10 +24,16 @@ import time
 from pathlib import Path
 
 import numba
+import numba.extending
 
 from beamcontact._cache import cache_dir
 
 _OPTIONS = {"fastmath": False, "error_model": "numpy", "nogil": True}
+
+
+# modules without "native" in their name whose functions compiled kernels inline
+# (:func:`jitable`): the step controller and the report layout it reads
+_COMPILED_ELSEWHERE = ("dynamics/control.py", "dynamics/report.py")
 
 
 def _source_hash() -> str:
@@ -37,7 +43,8 @@ def _source_hash() -> str:
     version of the sources cannot."""
     package = Path(__file__).parent
     digest = hashlib.sha256()
-    for path in sorted(package.rglob("*native*.py")):
+    paths = {*package.rglob("*native*.py"), *(package / p for p in _COMPILED_ELSEWHERE)}
+    for path in sorted(paths):
         digest.update(path.relative_to(package).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
@@ -83,6 +90,14 @@ def _remove_stale(current: Path) -> None:
 
 
 _CACHE_DIR = _numba_cache_dir()
+
+
+def jitable(func):
+    """``func`` unchanged for Python callers, and compiled into any :func:`njit` kernel
+    that calls it (``numba.extending.register_jitable``): one function for a host loop
+    and a compiled one. Its module must be listed in ``_COMPILED_ELSEWHERE`` so that the
+    cache of the kernels that inline it follows its edits."""
+    return numba.extending.register_jitable(func)
 
 
 def njit(func):

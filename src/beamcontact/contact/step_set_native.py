@@ -49,6 +49,7 @@ import numpy as np
 
 from beamcontact._native import njit
 from beamcontact.contact.blocks_native import bounding_box
+from beamcontact.dynamics.control import ADVANCE_FRACTION
 
 # the tie rule of point_weights_on_device: two gaps are equal within RTOL max(1, |q|)
 RTOL = 1e-9
@@ -739,3 +740,82 @@ def missed_blocks(x, ne, frozen_pairs, reach, interaction):
     if not np.isfinite(gap):
         gap = box_gap_lower_bound(x, ne, reach)
     return missing, pairs.shape[0], gap
+
+
+# ---------------------------------------------------------------- the set of one step
+
+
+class NativeLaw(NamedTuple):
+    """A contact law as the compiled step reads it (plain numbers, no law object).
+
+    Attributes:
+        code: blocks_native.LAW_CG or LAW_PENALTY.
+        points: IPIP with pairing "points" (the closest-point weights); False for an
+            integrated law (the arc-length weights). IPIP "zones" is chosen on the host.
+        reach, interaction, slack: the broad phase's reach, the distance within which
+            a block interacts (inf: every candidate) and the law's advancement slack.
+        m, q_reg, cutoff: the coarse-grained parameters (0 for the penalty).
+        amplitude, r12: (E, E) the law's amplitude and R1 + R2 of every element pair.
+    """
+
+    code: int
+    points: bool
+    reach: float
+    interaction: float
+    slack: float
+    m: float
+    q_reg: float
+    cutoff: float
+    amplitude: np.ndarray
+    r12: np.ndarray
+
+
+@njit
+def frozen_blocks(ne, law, pairs, W):
+    """The frozen set of the blocks ``pairs`` with weights W, as the compiled attempt and
+    its contact kernel take it: (conn, R, pairs, W, R1 + R2, amplitudes, law code, m,
+    q_reg, cutoff)."""
+    r12 = np.empty(pairs.shape[0])
+    amplitudes = np.empty(pairs.shape[0])
+    for p in range(pairs.shape[0]):
+        r12[p] = law.r12[pairs[p, 0], pairs[p, 1]]
+        amplitudes[p] = law.amplitude[pairs[p, 0], pairs[p, 1]]
+    return (ne.conn, ne.R, pairs, W, r12, amplitudes, law.code, law.m, law.q_reg, law.cutoff)
+
+
+@njit
+def step_set_at(x0, x_pred, v, a, h, motion, ne, law):
+    """The contact set of a step h chosen at its predictor x_pred (the twin of
+    :func:`step_set.step_set` and :func:`step_set.advanced_step` for IPIP "points" and
+    integrated laws), and the step after the conservative advancement: (pairs, W,
+    number of box candidates, h used). x0: the control points at the start, v, a their
+    velocities and accelerations (n_cp, 2), ``motion`` the bound of the predictor's
+    motion."""
+    if law.points:
+        pairs = candidate_pairs(x_pred, ne, law.reach + motion)
+        count = pairs.shape[0]
+        W = point_weights(block_gaps(x_pred, ne, pairs), pairs, ne, 2.0 * motion)
+        pairs, W = weighted_first(pairs, W)
+    else:
+        pairs, count = near_candidates(x_pred, ne, law.reach, law.interaction, motion)
+        ns = ne.R.shape[1]
+        W = np.empty((pairs.shape[0], ns, ns))
+        for p in range(pairs.shape[0]):
+            W[p] = arc_length_weights(ne, pairs[p, 0], pairs[p, 1])
+    ratio = predictor_approach_ratio(x0, v, a, h, ne, pairs, law.slack)
+    return pairs, W, count, h * min(1.0, ADVANCE_FRACTION / max(ratio, 1e-300))
+
+
+@njit
+def after_step(x0, x_new, x_pred, motion, ne, law, pairs):
+    """The checks after a step from x0 to x_new under the frozen blocks ``pairs``
+    (:func:`step_set.after_step`): (a block was missed or the solution left the
+    predictor's motion bound, number of box candidates at x_new, smallest surface gap,
+    the largest approach ratio of the step)."""
+    missing, count, gap = missed_blocks(x_new, ne, pairs, law.reach, law.interaction)
+    worst = 0.0
+    for p in range(x_new.shape[0]):
+        dx, dy = x_new[p, 0] - x_pred[p, 0], x_new[p, 1] - x_pred[p, 1]
+        worst = max(worst, math.sqrt(dx * dx + dy * dy))
+    missing = missing or worst > motion + 1e-6 * law.reach
+    return missing, count, gap, step_approach_ratio(x0, x_new, ne, pairs, law.slack)

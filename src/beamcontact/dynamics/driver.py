@@ -6,9 +6,12 @@ makes one attempt at a step: predictor, contact candidates, conservative advance
 step is shortened before it is solved so that no point pair approaches further than a
 fraction of its gap, :mod:`~beamcontact.contact.advance`), Newton on the HHT residual,
 post-step checks and diagnostics, reported as Python numbers
-(:mod:`~beamcontact.dynamics.report`). The host loop here (:func:`solve_dynamic`), which
-holds no JAX, then accepts the step or redoes it shorter
-(:mod:`~beamcontact.dynamics.control`):
+(:mod:`~beamcontact.dynamics.report`). The step controller
+(:mod:`~beamcontact.dynamics.control`) then accepts the step or redoes it shorter, in one
+of two loops that call the same controller: the host loop here (:func:`solve_dynamic`,
+which holds no JAX), where an engine makes one attempt per call, or the engine's own
+compiled loop (the native engine, dynamics/native_loop.py), which makes many steps per
+call and hands the accepted ones back to :func:`solve_dynamic` in order. The rules:
 
 * **Local error** (Zienkiewicz & Xie 1991): with the acceleration linear over the step,
   the Newmark displacement differs from the exact cubic by
@@ -36,34 +39,64 @@ holds no JAX, then accepts the step or redoes it shorter
 
 A step that would have to be shorter than ``dt_min`` (or more than ``max_cutbacks``
 attempts at one step) stops the run with a message; every accepted step has gone to
-``on_step`` before.
+``on_step`` before, also when the run is interrupted (Ctrl-C) inside a compiled loop.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
+import numpy as np
+
+from beamcontact.dynamics import control as ctl_
 from beamcontact.dynamics.control import (
-    GROW_MAX,
-    Attempts,
+    ACCEPT,
+    CUTBACKS,
+    E_DISSIPATED,
+    E_SET_CHANGE,
+    H_TRY,
+    ITERATIONS,
+    MOTION_FACTOR,
+    STEPS,
+    STOP,
     EnergyAccount,
-    Rejection,
+    Limits,
     StepControl,
-    energy_change,
-    next_step,
-    on_grid,
+    T,
+    decide,
+    new_state,
     step_size,
-    total_energy,
-    verdict,
+    unfinished,
 )
-from beamcontact.dynamics.report import DIAGNOSTICS, Attempt, Overflow, StepFlags
+from beamcontact.dynamics.report import (
+    C_COUNT,
+    C_COUNT_AFTER,
+    C_FLAGS,
+    C_ITERATIONS,
+    C_LOAD,
+    C_LOAD_AFTER,
+    CONVERGED,
+    DIAG0,
+    DIAGNOSTICS,
+    V_ERROR,
+    V_GAP,
+    V_H,
+    V_RESIDUAL,
+    V_RESIDUAL0,
+    Attempt,
+    Overflow,
+)
 
 if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
     from beamcontact.contact.broadphase import SearchCapacity
     from beamcontact.contact.problem import ContactProblem
+
+# what a loop hands over for every accepted step, in order: the state after it, its report
+# (values, counts) and the controller's state right after it was accepted
+Emit = Callable[[object, np.ndarray, np.ndarray, np.ndarray], None]
 
 
 class Engine(Protocol):
@@ -73,6 +106,12 @@ class Engine(Protocol):
         name: "jax" or "native".
         contact: the contact problem (None: no contact): its capacities and their growth,
             and ``max_penetration``, are the loop's.
+
+    An engine that runs the loop itself (the native one) also has ``runs_loop`` True and
+    ``advance(state, ctl, limits, emit) -> (state, stopping attempt or None, seconds of
+    its first attempt)``: it makes the attempts, asks :func:`~beamcontact.dynamics.
+    control.decide` about each, and emits every accepted step, from ``state`` and the
+    controller's state ``ctl`` until t_end or a stop.
     """
 
     name: str
@@ -126,34 +165,6 @@ class DynamicResult:
     rejections: dict
 
 
-@dataclass
-class _Loop:
-    """The host state of the time loop between attempts (local to one solve_dynamic)."""
-
-    engine: Engine
-    state: object
-    account: EnergyAccount
-    h_try: float
-    capacity: SearchCapacity | None
-    start: float = field(default_factory=time.perf_counter)
-    steps: int = 0
-    iterations: int = 0
-    attempts: Attempts = field(default_factory=Attempts)
-    set_jumps: list = field(default_factory=list)  # |jump| of the set changes refined
-    motion_factor: float = 1.0
-    compile_time: float | None = None
-
-    @property
-    def t(self) -> float:
-        return self.engine.time(self.state)
-
-    def result(self, status: str, message: str) -> DynamicResult:
-        return DynamicResult(status, message, self.steps, self.iterations,
-                             self.attempts.cutbacks, self.t, self.state, self.h_try,
-                             time.perf_counter() - self.start, self.compile_time or 0.0,
-                             self.attempts.by_kind)
-
-
 def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: StepControl,
                   *, dt_start: float | None = None, step0: int = 0,
                   on_step: Callable[[DynamicStep], None] | None = None,
@@ -179,37 +190,41 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
         account: the energy account of the state (a restart); default zero sums and the
             energies of ``state`` under its initial contact set.
     """
+    start = time.perf_counter()
     contact = engine.contact
     first = None if contact is None else contact.first_capacity(capacity)
-    loop = _Loop(engine, state, _initial_account(engine, state, first, account),
-                 control.dt if dt_start is None else dt_start, first)
-    tol = control.error_tol * length
-    while t_end - loop.t > 1e-12 * max(control.dt, t_end):
-        h = step_size(loop.t, t_end, loop.h_try)
-        attempt = _attempt(loop, h, contact)
-        if attempt is None:  # the candidate list or the search margin grew: redo
-            continue
-        new, report, flags = attempt.state, attempt.report, attempt.flags
-        diag = {k: report[k] for k in DIAGNOSTICS}
-        created, jump, allowance = energy_change(diag, loop.account.last,
-                                                 report["E_contact_before"],
-                                                 report["energy_floor"], control.energy_tol)
-        rejection = verdict(report, flags, report["h"],
-                            None if contact is None else contact.max_penetration, tol,
-                            allowance, created, jump, loop.set_jumps, control.dt_min)
-        if rejection is not None:
-            if _reject(loop, rejection, jump, control):
-                return loop.result("failed", _failure(loop, rejection, report, control))
-            continue
-        _accept(loop, new, report, diag, created, jump, h, tol, control.dt, t_end)
+    limits = Limits.of(control, t_end, length,
+                       None if contact is None else contact.max_penetration)
+    ctl = new_state(engine.time(state), control.dt if dt_start is None else dt_start,
+                    _initial_account(engine, state, first, account))
+
+    def emit(new, values: np.ndarray, counts: np.ndarray, after: np.ndarray) -> None:
         if on_step is not None:
-            on_step(DynamicStep(step0 + loop.steps, loop.t, report["h"], loop.h_try,
-                                loop.state, report["iterations"], loop.attempts.cutbacks,
-                                {**diag, "min_gap": report["min_gap"],
-                                 "E_total": total_energy(diag), "error": report["error"],
-                                 "E_dissipated": loop.account.E_dissipated,
-                                 "E_set_change": loop.account.E_set_change}))
-    return loop.result("completed", f"reached t = {loop.t:.6g} s in {loop.steps} steps")
+            on_step(accepted_step(new, values, counts, after, step0))
+
+    if getattr(engine, "runs_loop", False):
+        state, stopped, first_s = engine.advance(state, ctl, limits, emit)
+    else:
+        state, stopped, first_s = _host_loop(engine, state, ctl, limits, emit, first)
+    status, message = ("completed", f"reached t = {ctl[T]:.6g} s in {int(ctl[STEPS])} steps") \
+        if stopped is None else ("failed", _failure(stopped, ctl, limits))
+    return DynamicResult(status, message, int(ctl[STEPS]), int(ctl[ITERATIONS]),
+                         int(ctl[CUTBACKS]), float(ctl[T]), state, float(ctl[H_TRY]),
+                         time.perf_counter() - start, first_s or 0.0, ctl_.rejections(ctl))
+
+
+def accepted_step(state, values: np.ndarray, counts: np.ndarray, after: np.ndarray,
+                  step0: int = 0) -> DynamicStep:
+    """The :class:`DynamicStep` of an accepted attempt (``after``: the controller's state
+    right after it was accepted; ``step0`` the steps before this solve)."""
+    diag = dict(zip(DIAGNOSTICS, values[DIAG0:DIAG0 + len(DIAGNOSTICS)].tolist(), strict=True))
+    return DynamicStep(step0 + int(after[STEPS]), float(after[T]), float(values[V_H]),
+                       float(after[H_TRY]), state, int(counts[C_ITERATIONS]),
+                       int(after[CUTBACKS]),
+                       {**diag, "min_gap": float(values[V_GAP]),
+                        "E_total": ctl_.total_energy(diag), "error": float(values[V_ERROR]),
+                        "E_dissipated": float(after[E_DISSIPATED]),
+                        "E_set_change": float(after[E_SET_CHANGE])})
 
 
 def _initial_account(engine: Engine, state, capacity: SearchCapacity | None,
@@ -223,69 +238,47 @@ def _initial_account(engine: Engine, state, capacity: SearchCapacity | None,
                          engine.energies(state, capacity))
 
 
-def _attempt(loop: _Loop, h: float, contact: ContactProblem | None) -> Attempt | None:
-    """One attempt at a step of (at most) h, or None when the candidate list overflowed
-    or the solution left the search margin (both grown in ``loop``; the attempt is
-    redone)."""
-    t0 = time.perf_counter()
-    attempt = loop.engine.attempt(loop.state, h, loop.motion_factor, loop.capacity)
-    if isinstance(attempt, Overflow):
-        loop.capacity = contact.grown(loop.capacity, attempt.count, attempt.load)
-        return None
-    report, flags = attempt.report, attempt.flags
-    if loop.compile_time is None:
-        loop.compile_time = time.perf_counter() - t0
-    loop.iterations += report["iterations"]
-    if contact is not None:
-        # the candidates after a diverged Newton solve say nothing about the solution
-        converged = StepFlags.CONVERGED in flags
-        count = max(report["count"], report["count_after"] if converged else 0)
-        load = max(report["load"], report["load_after"] if converged else 0)
-        if not loop.capacity.fits(count, load):  # overflow: reallocate and redo
-            loop.capacity = contact.grown(loop.capacity, count, load)
-            return None
-        if converged and StepFlags.MISSING_BLOCK in flags and loop.motion_factor < 16:
-            loop.motion_factor *= 2.0  # the step moved further than foreseen: redo it
-            return None
-    return attempt
+def _host_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emit,
+               capacity: SearchCapacity | None) -> tuple[object, Attempt | None, float | None]:
+    """The loop of an engine that makes one attempt per call: (the last accepted state,
+    the attempt that stopped the run or None, seconds of the first attempt). The
+    candidate capacities grow on overflow (the attempt is redone)."""
+    contact = engine.contact
+    first_s = None
+    while unfinished(ctl[T], limits):
+        h = step_size(ctl[T], limits.t_end, ctl[H_TRY])
+        t0 = time.perf_counter()
+        attempt = engine.attempt(state, h, float(ctl[MOTION_FACTOR]), capacity)
+        if isinstance(attempt, Overflow):
+            capacity = contact.grown(capacity, attempt.count, attempt.load)
+            continue
+        if first_s is None:
+            first_s = time.perf_counter() - t0  # compilation and one attempt
+        values, counts = attempt.values, attempt.counts
+        ctl[ITERATIONS] += counts[C_ITERATIONS]
+        if contact is not None:
+            # the candidates after a diverged Newton solve say nothing about the solution
+            converged = bool(counts[C_FLAGS] & CONVERGED)
+            count = max(counts[C_COUNT], counts[C_COUNT_AFTER] if converged else 0)
+            load = max(counts[C_LOAD], counts[C_LOAD_AFTER] if converged else 0)
+            if not capacity.fits(int(count), int(load)):  # overflow: reallocate, redo
+                capacity = contact.grown(capacity, int(count), int(load))
+                continue
+        outcome = decide(ctl, values, counts, h, limits)
+        if outcome == STOP:
+            return state, attempt, first_s
+        if outcome == ACCEPT:
+            state = engine.at_time(attempt.state, float(ctl[T]))
+            emit(state, values, counts, ctl.copy())
+    return state, None, first_s
 
 
-def _reject(loop: _Loop, rejection: Rejection, jump: float, control: StepControl) -> bool:
-    """Count a rejected attempt and set the step to retry; True when the run must stop
-    (the step would be shorter than dt_min, or too many successive rejections)."""
-    if rejection.kind == "set_change":
-        loop.set_jumps.append(abs(jump))
-    else:
-        loop.set_jumps.clear()
-    if loop.attempts.reject(rejection, control):
-        return True
-    loop.h_try = rejection.retry
-    return False
-
-
-def _failure(loop: _Loop, rejection: Rejection, report: dict, control: StepControl) -> str:
-    """The message of a run stopped at ``rejection`` (``report``: the last attempt)."""
-    return (f"{rejection.reason} at t = {loop.t + report['h']:.6g} s (step "
-            f"{report['h']:.3g} s, {report['iterations']} iterations, residual "
-            f"{report['residual_norm']:.3e} from {report['initial_residual_norm']:.3e}); "
-            f"{loop.attempts.stop_reason(rejection, control)}; the last accepted time is "
-            f"{loop.t:.6g} s")
-
-
-def _accept(loop: _Loop, new, report: dict, diag: dict, created: float,
-            jump: float, h: float, tol: float, dt: float, t_end: float) -> None:
-    """Take the attempt: advance the time, the energy account and the step to try next."""
-    h_used = report["h"]
-    after_rejection = loop.attempts.consecutive > len(loop.set_jumps)
-    loop.attempts.accept()
-    loop.set_jumps.clear()
-    loop.motion_factor = 1.0
-    t = on_grid(loop.t + h_used, dt, t_end)
-    loop.state = loop.engine.at_time(new, t)
-    loop.steps += 1
-    loop.account = EnergyAccount(loop.account.E_dissipated - created,
-                                 loop.account.E_set_change + jump, diag)
-    loop.h_try = next_step(h_used, report["error"], tol, dt, after_rejection,
-                           report["iterations"])
-    if h_used < h * (1.0 - 1e-12):  # shortened by the advancement bound, not the error
-        loop.h_try = max(loop.h_try, min(h, GROW_MAX * h_used))
+def _failure(stopped: Attempt, ctl: np.ndarray, limits: Limits) -> str:
+    """The message of a run stopped at the attempt ``stopped``."""
+    values, counts = stopped.values, stopped.counts
+    t, h = float(ctl[T]), float(values[V_H])
+    kind = int(ctl[ctl_.KIND])
+    return (f"{ctl_.reason(kind, values, ctl, limits)} at t = {t + h:.6g} s (step "
+            f"{h:.3g} s, {int(counts[C_ITERATIONS])} iterations, residual "
+            f"{values[V_RESIDUAL]:.3e} from {values[V_RESIDUAL0]:.3e}); "
+            f"{ctl_.stop_reason(ctl, limits)}; the last accepted time is {t:.6g} s")

@@ -20,6 +20,7 @@ the last iterate's evaluation, and the energy of the set at the start of the ste
 evaluated only when no earlier attempt knows it (the energy account's set-change jump).
 """
 
+import time
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -30,23 +31,38 @@ from beamcontact.assembly.model import LoadState
 from beamcontact.contact import blocks_native
 from beamcontact.contact import step_set_native as ssn
 from beamcontact.contact.laws import coarse_grained_native as cgn
-from beamcontact.dynamics.control import ADVANCE_FRACTION
+from beamcontact.dynamics.control import ADVANCE_FRACTION, T
 from beamcontact.dynamics.hht import DIVERGE_AFTER, DynState
-from beamcontact.dynamics.report import COUNTS, VALUES, Attempt, StepFlags, read_report
+from beamcontact.dynamics.report import (
+    C_COUNT,
+    C_COUNT_AFTER,
+    C_FLAGS,
+    C_ITERATIONS,
+    CONVERGED,
+    COUNTS,
+    MISSING_BLOCK,
+    V_APPROACH,
+    V_CONTACT,
+    V_EC_BEFORE,
+    V_ERROR,
+    V_EXT,
+    V_FLOOR,
+    V_GAP,
+    V_GRAVITY,
+    V_H,
+    V_KIN,
+    V_PX,
+    V_PY,
+    V_RESIDUAL,
+    V_RESIDUAL0,
+    V_STRAIN,
+    VALUES,
+    Attempt,
+)
 from beamcontact.solvers import bordered_native as bordered
 from beamcontact.solvers.newton import NewtonOptions
 
 _V = {name: i for i, name in enumerate(VALUES)}
-_C = {name: i for i, name in enumerate(COUNTS)}
-# positions in the report vectors, as compile-time constants of the kernel
-V_RES, V_RES0, V_H, V_ERROR, V_APPROACH, V_GAP, V_EC_BEFORE, V_FLOOR = (
-    _V[k] for k in ("residual_norm", "initial_residual_norm", "h", "error", "approach",
-                    "min_gap", "E_contact_before", "energy_floor"))
-V_STRAIN, V_GRAVITY, V_EXT, V_CONTACT, V_KIN, V_PX, V_PY = (
-    _V[k] for k in ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y"))
-C_FLAGS, C_ITERATIONS = _C["flags"], _C["iterations"]
-C_COUNT, C_COUNT_AFTER = _C["count"], _C["count_after"]
-CONVERGED, MISSING = int(StepFlags.CONVERGED), int(StepFlags.MISSING_BLOCK)
 
 
 def _beam_dofs(nm: nmod.NativeModel) -> list[np.ndarray]:
@@ -191,7 +207,7 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
         da_max = max(da_max, abs((a[i] - a_n[i]) * nm.free[i]))
         forces += abs(f_pot_n[i] * nm.free[i]) + abs(f_pot[i] * nm.free[i])
     values[:] = 0.0
-    values[V_RES], values[V_RES0], values[V_H] = rn, norm0, h
+    values[V_RESIDUAL], values[V_RESIDUAL0], values[V_H] = rn, norm0, h
     values[V_ERROR] = h * h * abs(beta - 1.0 / 6.0) * da_max
     values[V_GAP] = np.nan
     # what the converged solve can resolve of the energy (step.py's _energy_floor)
@@ -312,16 +328,6 @@ def _predictor(x_ref, u, v, a, h, motion_factor):
     return motion, x0, x_pred
 
 
-@njit
-def _deviation(x, y):
-    """The largest distance between the points of x and y (n, 2)."""
-    worst = 0.0
-    for p in range(x.shape[0]):
-        dx, dy = x[p, 0] - y[p, 0], x[p, 1] - y[p, 1]
-        worst = max(worst, np.sqrt(dx * dx + dy * dy))
-    return worst
-
-
 @dataclass(frozen=True)
 class _Chosen:
     """The contact set of one attempt: the frozen set as :func:`attempt` takes it, the
@@ -335,105 +341,90 @@ class _Chosen:
     count: int
 
 
+def native_law(contact, ne: ssn.NativeContactElements) -> ssn.NativeLaw:
+    """The contact law of ``contact`` (a ContactProblem) as the compiled step reads it:
+    its parameters, and its amplitude and R1 + R2 for every element pair (the same
+    elementwise arithmetic as per pair)."""
+    law = contact.law
+    E = ne.radius.shape[0]
+    r1, r2 = np.repeat(ne.radius, E), np.tile(ne.radius, E)
+    if law.closest_pairs:
+        code, params = blocks_native.LAW_PENALTY, (0.0, 0.0, 0.0)
+        amplitude = np.full(E * E, float(law.penalty))
+    else:
+        code = blocks_native.LAW_CG
+        params = (float(law.exponent), float(law.q_reg), float(law.cutoff))
+        b12 = np.repeat(ne.beta, E) * np.tile(ne.beta, E)
+        amplitude = (float(law.k) * b12) * cgn.cg_constants(params[0], r1, r2)
+    return ssn.NativeLaw(code, bool(law.closest_pairs and law.pairing == "points"),
+                         float(contact.reach), float(law.interaction_distance()),
+                         float(law.advance_slack()), *params,
+                         np.ascontiguousarray(amplitude.reshape(E, E)),
+                         np.ascontiguousarray((r1 + r2).reshape(E, E)))
+
+
 class _NativeContact:
     """The contact set of a step on the native engine, the twin of
     :mod:`~beamcontact.contact.step_set` (all-pairs broad phase; no self-contact, no
     obstacles): chosen at the predictor, the step shortened by the conservative
-    advancement, the checks after the step. IPIP "zones" are chosen on the host by the
-    rule the JAX engine uses (:meth:`~beamcontact.contact.problem.ContactProblem.
-    closest_pair_set`)."""
+    advancement, the checks after the step, each compiled
+    (:func:`~beamcontact.contact.step_set_native.step_set_at`, ``after_step``). IPIP
+    "zones" are chosen on the host by the rule the JAX engine uses
+    (:meth:`~beamcontact.contact.problem.ContactProblem.closest_pair_set`)."""
 
     def __init__(self, contact):
         self.problem = contact
         self.ne = ssn.native_contact_elements(contact.elements)
-        law = contact.law
-        self.reach = float(contact.reach)
-        self.interaction = float(law.interaction_distance())
-        self.slack = float(law.advance_slack())
-        self._arc_weights: dict[tuple[int, int], np.ndarray] = {}
-        self.points = law.closest_pairs and law.pairing == "points"
-        self.zones = law.closest_pairs and law.pairing == "zones"
-        if law.closest_pairs:
-            self.code, self.params = blocks_native.LAW_PENALTY, (0.0, 0.0, 0.0)
-            self._amplitude = lambda r1, r2, b12: np.full(r1.shape, float(law.penalty))
-        else:
-            self.code = blocks_native.LAW_CG
-            self.params = (float(law.exponent), float(law.q_reg), float(law.cutoff))
-            self._amplitude = lambda r1, r2, b12: (float(law.k) * b12) * cgn.cg_constants(
-                float(law.exponent), r1, r2)
-
-    def _frozen(self, pairs: np.ndarray, W: np.ndarray) -> tuple:
-        ne = self.ne
-        r1, r2 = ne.radius[pairs[:, 0]], ne.radius[pairs[:, 1]]
-        b12 = ne.beta[pairs[:, 0]] * ne.beta[pairs[:, 1]]
-        amps = self._amplitude(r1, r2, b12)
-        return (ne.conn, ne.R, np.ascontiguousarray(pairs, dtype=np.int64),
-                np.ascontiguousarray(W, dtype=np.float64), r1 + r2, amps, self.code,
-                *self.params)
-
-    def _weights(self, x, pairs: np.ndarray, motion: float):
-        """(pairs, W) of the law at x for the candidate blocks ``pairs``."""
-        ne = self.ne
-        if self.points:
-            q = ssn.block_gaps(x, ne, pairs)
-            W = ssn.point_weights(q, pairs, ne, 2.0 * motion)
-            return ssn.weighted_first(pairs, W)
-        if self.zones:
-            q = ssn.block_gaps(x, ne, pairs)
-            cs = self.problem.closest_pair_set(pairs, q, motion)
-            return np.asarray(cs.pairs), np.asarray(cs.W)
-        # the weights of an integrated law are those of the reference arc length: the
-        # same for a block at every step, so each is computed once
-        W = np.empty((pairs.shape[0], ne.R.shape[1], ne.R.shape[1]))
-        for p, block in enumerate(map(tuple, pairs.tolist())):
-            if block not in self._arc_weights:
-                self._arc_weights[block] = ssn.arc_length_weights(ne, *block)
-            W[p] = self._arc_weights[block]
-        return pairs, W
+        self.law = native_law(contact, self.ne)
+        self.zones = contact.law.closest_pairs and contact.law.pairing == "zones"
 
     def set_at(self, x) -> tuple:
         """The frozen set at configuration x with no motion (the start of a run)."""
-        if self.problem.law.closest_pairs:
-            pairs = ssn.candidate_pairs(x, self.ne, self.reach)
+        ne, law = self.ne, self.law
+        if self.zones:
+            pairs = ssn.candidate_pairs(x, ne, law.reach)
+            cs = self.problem.closest_pair_set(pairs, ssn.block_gaps(x, ne, pairs), 0.0)
+            pairs, W = cs.pairs, cs.W
         else:
-            pairs = ssn.near_candidates(x, self.ne, self.reach, self.interaction, 0.0)[0]
-        return self._frozen(*self._weights(x, pairs, 0.0))
+            zero = np.zeros_like(x)
+            pairs, W = ssn.step_set_at(x, x, zero, zero, 1.0, 0.0, ne, law)[:2]
+        return ssn.frozen_blocks(ne, law, np.ascontiguousarray(pairs, dtype=np.int64),
+                                 np.ascontiguousarray(W, dtype=np.float64))
 
     def choose(self, s: DynState, h: float, motion_factor: float, x_ref) -> _Chosen:
         """The set at the predictor of a step h and the step after the advancement."""
+        ne, law = self.ne, self.law
         v2, a2 = s.v.reshape(-1, 2), s.a.reshape(-1, 2)
         motion, x0, x_pred = _predictor(x_ref, s.u, s.v, s.a, h, motion_factor)
-        if self.problem.law.closest_pairs:
-            candidates = ssn.candidate_pairs(x_pred, self.ne, self.reach + motion)
-            count = candidates.shape[0]
-            pairs, W = self._weights(x_pred, candidates, motion)
-        else:
-            pairs, count = ssn.near_candidates(x_pred, self.ne, self.reach, self.interaction,
-                                               motion)
-            pairs, W = self._weights(x_pred, pairs, motion)
-        ratio = ssn.predictor_approach_ratio(x0, v2, a2, h, self.ne, pairs, self.slack)
+        if not self.zones:
+            pairs, W, count, h_used = ssn.step_set_at(x0, x_pred, v2, a2, h, motion, ne, law)
+            return _Chosen(ssn.frozen_blocks(ne, law, pairs, W), h_used, x0, x_pred, motion,
+                           int(count))
+        candidates = ssn.candidate_pairs(x_pred, ne, law.reach + motion)
+        cs = self.problem.closest_pair_set(candidates, ssn.block_gaps(x_pred, ne, candidates),
+                                           motion)
+        pairs = np.ascontiguousarray(cs.pairs, dtype=np.int64)
+        ratio = ssn.predictor_approach_ratio(x0, v2, a2, h, ne, pairs, law.slack)
         h_used = h * min(1.0, ADVANCE_FRACTION / max(ratio, 1e-300))
-        return _Chosen(self._frozen(pairs, W), h_used, x0, x_pred, motion, int(count))
+        return _Chosen(ssn.frozen_blocks(ne, law, pairs, np.ascontiguousarray(cs.W,
+                                                                           dtype=np.float64)),
+                       h_used, x0, x_pred, motion, int(candidates.shape[0]))
 
     def min_gap(self, x: np.ndarray, frozen: tuple) -> float:
         """The smallest surface gap at x (the post-step check's)."""
-        return ssn.missed_blocks(x, self.ne, frozen[2], self.reach, self.interaction)[2]
+        return ssn.missed_blocks(x, self.ne, frozen[2], self.law.reach,
+                                 self.law.interaction)[2]
 
-    def check(self, chosen: _Chosen, s: DynState, u, x_ref, values, counts) -> None:
+    def check(self, chosen: _Chosen, u, x_ref, values, counts) -> None:
         """The checks after the step (:func:`~beamcontact.contact.step_set.after_step`)
         into the report vectors."""
-        x_new = x_ref + u.reshape(-1, 2)
-        pairs = chosen.frozen[2]
-        missing, count_after, gap = ssn.missed_blocks(x_new, self.ne, pairs, self.reach,
-                                                      self.interaction)
-        missing = missing or _deviation(x_new, chosen.x_pred) > chosen.motion \
-            + 1e-6 * self.reach
-        values[V_GAP] = gap
-        values[V_APPROACH] = ssn.step_approach_ratio(chosen.x0, x_new, self.ne, pairs,
-                                                     self.slack)
+        missing, count_after, gap, approach = ssn.after_step(
+            chosen.x0, x_ref + u.reshape(-1, 2), chosen.x_pred, chosen.motion, self.ne,
+            self.law, chosen.frozen[2])
+        values[V_GAP], values[V_APPROACH] = gap, approach
         counts[C_COUNT], counts[C_COUNT_AFTER] = chosen.count, count_after
         if missing:
-            counts[C_FLAGS] |= MISSING
+            counts[C_FLAGS] |= MISSING_BLOCK
 
 
 # the contact argument of a model without contact: no element pairs
@@ -449,12 +440,37 @@ def _host(a) -> np.ndarray:
     return np.array(a, dtype=np.float64, order="C", copy=True)
 
 
+def _no_contact_elements() -> tuple[ssn.NativeContactElements, ssn.NativeLaw]:
+    """Contact elements and a law of no elements, with the types of real ones (the
+    compiled loop of a model without contact takes them and never reads them)."""
+    f2, i2 = np.zeros((0, 1)), np.zeros((0, 1), np.int64)
+    ne = ssn.NativeContactElements(i2, np.zeros((0, 1), np.bool_), np.zeros((0, 1, 1)), f2,
+                                   f2.copy(), np.zeros(0), np.zeros(0),
+                                   np.zeros(0, np.int64), np.zeros((1, 1), np.bool_), 0.0, 1)
+    law = ssn.NativeLaw(blocks_native.LAW_CG, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                        np.zeros((0, 0)), np.zeros((0, 0)))
+    return ne, law
+
+
+# the compiled loop returns to Python after about this much wall time [s], to write the
+# outputs, show progress and honour Ctrl-C
+CALL_SECONDS = 0.1
+
+
 class NativeEngine:
     """The native engine of the time loop (docs/architecture.md, "Engines"): the same
     interface as :class:`~beamcontact.dynamics.step.JaxEngine`; its states are
-    :class:`~beamcontact.dynamics.hht.DynState` of NumPy arrays."""
+    :class:`~beamcontact.dynamics.hht.DynState` of NumPy arrays. It runs the time loop
+    itself (:meth:`advance`, the compiled loop of dynamics/native_loop.py), but for IPIP
+    "zones", whose set is chosen on the host: then the driver's host loop calls
+    :meth:`attempt`."""
 
     name = "native"
+
+    @property
+    def runs_loop(self) -> bool:
+        """Whether :meth:`advance` runs this model's loop (not for IPIP "zones")."""
+        return self._contact is None or not self._contact.zones
 
     def __init__(self, model, alpha: float, options: NewtonOptions, length: float,
                  dt_ref: float, contact=None):
@@ -522,10 +538,70 @@ class NativeEngine:
                 self._remember(s.u, frozen, float(values[V_EC_BEFORE]))
             self._remember(u, frozen, float(values[V_CONTACT]))
         if self._contact is not None:
-            self._contact.check(chosen, s, u, self.nm.x_ref, values, counts)
+            self._contact.check(chosen, u, self.nm.x_ref, values, counts)
         new = DynState(s.t + values[V_H], u, v, a, f_pot,
                        replace(s.load_state, theta=theta, tangent=tangent))
-        return Attempt(new, *read_report(values.tolist(), counts.tolist()))
+        return Attempt(new, values, counts)
+
+    def advance(self, state: DynState, ctl: np.ndarray, limits, emit):
+        """Run the time loop from ``state`` and the controller's state ``ctl`` to
+        limits.t_end or a stop (dynamics/driver.py, :class:`~beamcontact.dynamics.
+        driver.Engine`): calls of the compiled loop of about CALL_SECONDS each (the
+        first makes one attempt: its time is the compile time), every accepted step
+        emitted in order after each call, also when the call is interrupted. Returns (the
+        last accepted state, the stopping attempt or None, seconds of the first call)."""
+        from beamcontact.dynamics import native_loop
+
+        s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
+        u, v, a, f_pot = (np.array(x, dtype=np.float64) for x in (s.u, s.v, s.a, s.f_pot))
+        theta = np.array(s.load_state.theta, dtype=np.float64)
+        tangent = np.array(s.load_state.tangent, dtype=np.float64)
+        if self._contact is None:
+            ne, law = _no_contact_elements()
+        else:
+            ne, law = self._contact.ne, self._contact.law
+        sysm, lay = self.system, self.system.layout
+        ar = sysm.arrays
+        system = (sysm.position, sysm.block_positions, sysm.free, ar.band, ar.B, ar.C, ar.D,
+                  ar.ipiv, ar.ipiv_s, lay.kl, lay.ku)
+        newton = (self.alpha, float(self.options.rtol), float(self.utol), self.dt_ref,
+                  self.total_mass, int(self.options.max_iterations), int(DIVERGE_AFTER))
+        last_values, last_counts = np.zeros(len(VALUES)), np.zeros(len(COUNTS), np.int64)
+        made = np.zeros(2, np.int64)
+        budget, first_s = 1, None
+        n = u.shape[0]
+        # at most about 32 MB of buffers per call
+        row = 8 * (4 * n + theta.size + tangent.size + len(VALUES) + len(COUNTS) + ctl.size)
+        most = max(2**25 // row, 1)
+        while True:
+            out = (np.empty((budget, n)), np.empty((budget, n)), np.empty((budget, n)),
+                   np.empty((budget, n)), np.empty((budget, *theta.shape)),
+                   np.empty((budget, *tangent.shape)), np.empty((budget, len(VALUES))),
+                   np.empty((budget, len(COUNTS)), np.int64), np.empty((budget, ctl.size)))
+            made[:] = 0
+            t0 = time.perf_counter()
+            try:
+                why = native_loop.run(self.nm, ne, law, self._contact is not None, system,
+                                      NO_CONTACT, newton, ctl, limits, u, v, a, f_pot, theta,
+                                      tangent, budget, *out, made, last_values, last_counts)
+            finally:
+                for k in range(int(made[0])):
+                    after = out[8][k]
+                    emit(DynState(float(after[T]), out[0][k], out[1][k], out[2][k], out[3][k],
+                                  LoadState(theta=out[4][k], tangent=out[5][k])),
+                         out[6][k], out[7][k], after)
+            seconds = time.perf_counter() - t0
+            if first_s is None:
+                first_s = seconds
+            last = DynState(float(ctl[T]), u, v, a, f_pot,
+                            LoadState(theta=theta, tangent=tangent))
+            if why == native_loop.DONE:
+                return last, None, first_s
+            if why == native_loop.STOPPED:
+                return last, Attempt(None, last_values, last_counts), first_s
+            # the next call as long as CALL_SECONDS at the rate of this one
+            rate = seconds / max(int(made[1]), 1)
+            budget = int(min(max(CALL_SECONDS / max(rate, 1e-9), 1), most))
 
     def initial_state(self, v0: np.ndarray) -> DynState:
         """The state at t = 0: zero displacement, the velocity v0 (n_dof,) on the free

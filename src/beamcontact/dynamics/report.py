@@ -4,12 +4,15 @@ the attempt itself.
 
 An engine returns the quantities of :data:`VALUES` (float64) and :data:`COUNTS`
 (integers, the :class:`StepFlags` first) as two vectors, one copy each from compiled code;
-:func:`read_report` turns them into the dict the controller (dynamics/control.py) and the
-driver (dynamics/driver.py) read.
+:func:`read_report` turns them into a dict of Python numbers; the step controller
+(dynamics/control.py) reads the vectors at the positions named here (``V_*``, ``C_*``),
+in Python and in compiled code alike.
 """
 
 from dataclasses import dataclass
 from enum import IntFlag
+
+import numpy as np
 
 # the diagnostics of a state
 DIAGNOSTICS = ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p_y")
@@ -17,6 +20,12 @@ DIAGNOSTICS = ("E_strain", "E_gravity", "E_ext", "E_contact", "E_kin", "p_x", "p
 VALUES = ("residual_norm", "initial_residual_norm", "h", "error", "approach", "min_gap",
           "E_contact_before", "energy_floor", *DIAGNOSTICS)
 COUNTS = ("flags", "iterations", "count", "count_after", "load", "load_after")
+# their positions, as constants that compiled code reads (dynamics/control.py)
+(V_RESIDUAL, V_RESIDUAL0, V_H, V_ERROR, V_APPROACH, V_GAP, V_EC_BEFORE, V_FLOOR, V_STRAIN,
+ V_GRAVITY, V_EXT, V_CONTACT, V_KIN, V_PX, V_PY) = range(len(VALUES))
+C_FLAGS, C_ITERATIONS, C_COUNT, C_COUNT_AFTER, C_LOAD, C_LOAD_AFTER = range(len(COUNTS))
+# the diagnostics are the last entries of VALUES, in their order
+DIAG0 = V_STRAIN
 
 
 class StepFlags(IntFlag):
@@ -26,15 +35,29 @@ class StepFlags(IntFlag):
     MISSING_BLOCK = 2  # the solution left the candidate search: a contact block was missed
 
 
+# the flags as plain integers, for compiled code
+CONVERGED, MISSING_BLOCK = int(StepFlags.CONVERGED), int(StepFlags.MISSING_BLOCK)
+
+
 @dataclass(frozen=True)
 class Attempt:
-    """One attempt at a step: the engine's state after it (meaningful when accepted), the
-    report (every name of :data:`VALUES` and :data:`COUNTS` but ``flags``, as Python
-    numbers) and the status flags."""
+    """One attempt at a step: the engine's state after it (meaningful when accepted) and
+    its report, the vectors ``values`` (float64, :data:`VALUES`) and ``counts`` (int64,
+    :data:`COUNTS`)."""
 
     state: object
-    report: dict
-    flags: StepFlags
+    values: np.ndarray
+    counts: np.ndarray
+
+    @property
+    def report(self) -> dict:
+        """The report as a dict of Python numbers (every name but ``flags``)."""
+        return read_report(self.values.tolist(), self.counts.tolist())[0]
+
+    @property
+    def flags(self) -> StepFlags:
+        """The status flags."""
+        return StepFlags(int(self.counts[C_FLAGS]))
 
 
 @dataclass(frozen=True)

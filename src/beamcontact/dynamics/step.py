@@ -30,7 +30,6 @@ from beamcontact.dynamics.report import (
     Attempt,
     Overflow,
     StepFlags,
-    read_report,
 )
 from beamcontact.solvers.newton import NewtonOptions
 
@@ -187,7 +186,7 @@ class JaxEngine:
             state, self.model, np.float64(h), *self._scalars, np.float64(motion_factor),
             self._search, cs, max_iterations=self.options.max_iterations, capacity=capacity)
         values, counts = jax.device_get((values, counts))
-        return Attempt(new, *read_report(values.tolist(), counts.tolist()))
+        return Attempt(new, np.asarray(values, np.float64), np.asarray(counts, np.int64))
 
     def _zone_set(self, state: DynState, h: float, motion_factor: float,
                   capacity: SearchCapacity) -> ContactSet | Overflow:

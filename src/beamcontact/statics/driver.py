@@ -5,8 +5,8 @@ solve, or a solution whose smallest contact gap is below -max_penetration (the c
 is frozen during an increment, so a large one can carry a point through a beam),
 restores the last converged state and halves the increment, up to ``max_cutbacks``
 times in a row; after a success the increment grows back (doubling) to the nominal one.
-This is the time stepping's controller (dynamics/control.py: ``StepControl``,
-``Attempts``, ``Rejection``, ``next_step``) with the load factor as time and no error
+This is the time stepping's controller (dynamics/control.py: its state vector,
+``count_rejection``, ``next_step``) with the load factor as time and no error
 estimate. Every converged step is handed to ``on_step`` at once, so a later failure
 loses nothing. The loop holds no JAX: an engine (:class:`StaticEngine`; the JAX one is
 :class:`~beamcontact.statics.step.JaxStatics`) makes the attempts.
@@ -26,7 +26,16 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from beamcontact.dynamics.control import Attempts, Rejection, StepControl, next_step
+from beamcontact.dynamics import control as ctl_
+from beamcontact.dynamics.control import (
+    CONSECUTIVE,
+    CUTBACKS,
+    NEWTON,
+    PENETRATION,
+    EnergyAccount,
+    count_rejection,
+    next_step,
+)
 from beamcontact.dynamics.report import Overflow
 
 if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
@@ -117,7 +126,6 @@ def solve_static(engine: StaticEngine, load_steps: int, max_cutbacks: int = 12,
     loop.dlam = loop.nominal
     # the controller of time stepping with the load factor as time: steps of at most the
     # nominal increment, halved on failure, no error estimate, no smallest step
-    control = StepControl(loop.nominal, 0.0, 0.0, 0.0, max_cutbacks)
     if contact is not None:  # complete, since the singularity check needs every block
         loop.cs, loop.capacity = engine.complete_set(loop.state, loop.margin, loop.capacity)
     if on_step is not None:
@@ -131,21 +139,21 @@ def solve_static(engine: StaticEngine, load_steps: int, max_cutbacks: int = 12,
         res = _load_attempt(loop, dl)
         if res is None:  # the candidate list or the search margin grew: redo
             continue
-        rejection = _rejection(res, contact, dl)
-        if rejection is not None:
-            if loop.attempts.reject(rejection, control):
-                return loop.result("failed", _failure(loop, res, dl, rejection))
-            loop.dlam = rejection.retry
+        kind = _rejection(res, contact)
+        if kind != ctl_.ACCEPTED:
+            if count_rejection(loop.ctl, kind, 0.5 * dl, 0.0, 0.0, max_cutbacks):
+                return loop.result("failed", _failure(loop, res, dl, kind))
+            loop.dlam = 0.5 * dl
             continue
-        loop.attempts.accept()
+        loop.ctl[CONSECUTIVE] = 0.0
         loop.state, loop.lam, loop.steps = engine.accept(loop.state, res), loop.lam + dl, \
             loop.steps + 1
         if on_step is not None:
             values = engine.values(loop.state, loop.lam, loop.cs)
             on_step(StaticStep(loop.steps, loop.lam, engine.displacement(loop.state),
-                               res.iterations, loop.attempts.cutbacks, values))
+                               res.iterations, int(loop.ctl[CUTBACKS]), values))
         # no error estimate in statics: the increment grows back after every converged step
-        loop.dlam = next_step(loop.dlam, 0.0, control.error_tol, control.dt, False, 0)
+        loop.dlam = next_step(loop.dlam, 0.0, 0.0, loop.nominal, False, 0)
     return loop.result("completed", f"reached load factor 1 in {loop.steps} steps")
 
 
@@ -163,13 +171,13 @@ class _LoadLoop:
     cs: object = None
     steps: int = 0
     iterations: int = 0
-    attempts: Attempts = field(default_factory=Attempts)
+    ctl: np.ndarray = field(default_factory=lambda: ctl_.new_state(0.0, 0.0, _NO_ENERGY))
     compile_time: float | None = None
     start: float = field(default_factory=time.perf_counter)
 
     def result(self, status: str, message: str) -> StaticResult:
         return StaticResult(status, message, self.steps, self.iterations,
-                            self.attempts.cutbacks, self.lam,
+                            int(self.ctl[CUTBACKS]), self.lam,
                             self.engine.displacement(self.state),
                             time.perf_counter() - self.start, self.compile_time or 0.0)
 
@@ -193,24 +201,30 @@ def _load_attempt(loop: _LoadLoop, dl: float) -> LoadAttempt | None:
     return res
 
 
-def _rejection(res: LoadAttempt, contact: ContactProblem | None,
-               dl: float) -> Rejection | None:
-    """Why a load step is redone with half the increment: Newton did not converge, or
-    the solution penetrates deeper than ``max_penetration`` (the contact set is frozen
-    at the start of the step, so a point that was out of reach there can pass into, or
-    through, another beam or its own within one increment); None: accepted."""
+# the controller's energy account is unused in statics
+_NO_ENERGY = EnergyAccount(0.0, 0.0, dict.fromkeys(ctl_.DIAGNOSTICS, 0.0))
+
+
+def _rejection(res: LoadAttempt, contact: ContactProblem | None) -> int:
+    """Why a load step is redone with half the increment (a kind of
+    :data:`~beamcontact.dynamics.control.KINDS`): Newton did not converge, or the
+    solution penetrates deeper than ``max_penetration`` (the contact set is frozen at the
+    start of the step, so a point that was out of reach there can pass into, or through,
+    another beam or its own within one increment); ACCEPTED: accepted."""
     if not res.converged:
-        return Rejection("newton", "Newton did not converge", 0.5 * dl)
+        return NEWTON
     if contact is not None and res.gap < -contact.max_penetration:
-        return Rejection("penetration", f"the smallest gap {res.gap:.3g} m is below "
-                         f"-max_penetration = {-contact.max_penetration:.3g} m", 0.5 * dl)
-    return None
+        return PENETRATION
+    return ctl_.ACCEPTED
 
 
-def _failure(loop: _LoadLoop, res: LoadAttempt, dl: float, rejection: Rejection) -> str:
+def _failure(loop: _LoadLoop, res: LoadAttempt, dl: float, kind: int) -> str:
     """The message of load stepping stopped after ``max_cutbacks`` successive halvings."""
-    return (f"{rejection.reason} at load factor {loop.lam + dl:.6g} "
+    why = "Newton did not converge" if kind == NEWTON else (
+        f"the smallest gap {res.gap:.3g} m is below -max_penetration = "
+        f"{-loop.engine.contact.max_penetration:.3g} m")
+    return (f"{why} at load factor {loop.lam + dl:.6g} "
             f"({res.iterations} iterations, residual {res.residual_norm:.3e} "
             f"from {res.initial_residual_norm:.3e}) after "
-            f"{loop.attempts.consecutive - 1} successive halvings of the load increment (now "
-            f"{dl:.3g}); the last converged load factor is {loop.lam:.6g}")
+            f"{int(loop.ctl[CONSECUTIVE]) - 1} successive halvings of the load increment "
+            f"(now {dl:.3g}); the last converged load factor is {loop.lam:.6g}")
