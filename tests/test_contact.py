@@ -26,6 +26,7 @@ from beamcontact.setup.model import build_model, point_sampler, uniform_velociti
 from beamcontact.setup.start import step_control
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
+from beamcontact.statics.native_step import NativeStatics
 from beamcontact.statics.step import JaxStatics
 
 # --- eq. (9) against brute-force integration of eq. (8) ----------------------------------
@@ -337,7 +338,8 @@ def test_ipip_points_energy_is_continuous_where_zones_jumps():
 
 # --- statics: IPIP closed form -----------------------------------------------------------
 
-def test_ipip_static_reaction_and_penetration():
+@pytest.mark.parametrize("engine", ["native", "jax"])
+def test_ipip_static_reaction_and_penetration(engine):
     """A stiff straight beam pinned at its left end rests with its middle on the apex of a
     stiff clamped arc; a force F at that middle point: moment equilibrium about the pin
     gives the contact reaction F, hence a penetration F / eps."""
@@ -358,7 +360,8 @@ def test_ipip_static_reaction_and_penetration():
     model, disc = build_model(case)
     contact = build_contact(case, disc)
     steps = []
-    res = solve_static(JaxStatics(model, contact, NewtonOptions(), disc.length_scale), 2,
+    statics = {"native": NativeStatics, "jax": JaxStatics}[engine]
+    res = solve_static(statics(model, contact, NewtonOptions(), disc.length_scale), 2,
                        on_step=steps.append)
     assert res.status == "completed", res.message
     last = steps[-1].energies

@@ -6,6 +6,9 @@
 - quarter-circle cantilever, small tip load: Castigliano's theorem (thin curved beam);
 - h-refinement: L2 rate min(p+1, 2(p-1)) of a 4th-order problem (docs/architecture.md,
   "Verification").
+
+Load stepping runs on the native engine (statics/native_step.py), as ``beamcontact run``
+does; the end moment, the elastica and the mechanism checks run on the JAX engine too.
 """
 
 import jax
@@ -19,13 +22,16 @@ from scipy.optimize import fsolve
 from beamcontact.setup.model import build_model, point_sampler
 from beamcontact.solvers.newton import NewtonOptions
 from beamcontact.statics.driver import solve_static
+from beamcontact.statics.native_step import NativeStatics
 from beamcontact.statics.step import JaxStatics
 
+ENGINES = {"native": NativeStatics, "jax": JaxStatics}
 
-def _solve(case, steps=None):
+
+def _solve(case, engine="native"):
     model, disc = build_model(case)
     states = []
-    res = solve_static(JaxStatics(model, None, NewtonOptions(), disc.length_scale),
+    res = solve_static(ENGINES[engine](model, None, NewtonOptions(), disc.length_scale),
                        case.analysis.load_steps,
                        on_step=lambda s: states.append((s.load_factor, s.u, s.iterations)))
     assert res.status == "completed", res.message
@@ -86,13 +92,14 @@ def test_section_moments_are_those_of_a_circle():
     assert np.isclose(m[4], np.pi * a**6 / 8)
 
 
-def test_end_moment_rolls_cantilever_into_exact_circle():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_end_moment_rolls_cantilever_into_exact_circle(engine):
     L, a, E = 1.0, 0.005, 1.0e9
     M = 2 * np.pi * bending_stiffness(E, a) / L
     case = static_case([beam(line=([0, 0], [L, 0]), degree=3, elements=16, radius=a, E=E,
                              supports=[{"at": "start", "type": "clamped"}])],
                        [{"beam": "b", "at": "end", "moment": M}], load_steps=10)
-    model, disc, states = _solve(case)
+    model, disc, states = _solve(case, engine)
     for lam_load, u, _ in states[1:]:
         lam, k = _exact_pure_bending(E, a, L, lam_load * M)
         fractions = np.linspace(0, 1, 21)
@@ -187,7 +194,8 @@ def _elastica_tip(load_params):
     return np.array(tips)
 
 
-def test_cantilever_tip_load_matches_elastica():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_cantilever_tip_load_matches_elastica(engine):
     L, a, E = 1.0, 0.002, 1.0e9
     EI = bending_stiffness(E, a)
     k_max = 10.0
@@ -196,7 +204,7 @@ def test_cantilever_tip_load_matches_elastica():
                              supports=[{"at": "start", "type": "clamped"}])],
                        [{"beam": "b", "at": "end", "force": [0.0, -k_max * EI / L**2]}],
                        load_steps=10)
-    model, disc, states = _solve(case)
+    model, disc, states = _solve(case, engine)
     ks = [k_max * lam for lam, _, _ in states[1:]]
     ref = _elastica_tip(ks)
     # literature check of the reference (Mattiasson 1981): k = 1 -> vertical 0.30172 L
@@ -346,13 +354,14 @@ def test_rigid_modes_left_free_by_the_supports(supports, modes):
     ([{"at": "start", "type": "pinned"}],
      "beam 'b' has 1 rigid-body mode not restrained by its supports (it can rotate about "
      "(0, 0))")])
-def test_singular_stiffness_stops_at_once_naming_the_beam(supports, says):
+@pytest.mark.parametrize("engine", ENGINES)
+def test_singular_stiffness_stops_at_once_naming_the_beam(supports, says, engine):
     """A mechanism under a transverse load stops before the first step with a reason,
     instead of halving the load increment on NaN residuals."""
     case = _restraint_case(supports)
     model, disc = build_model(case)
     steps = []
-    engine = JaxStatics(model, None, NewtonOptions(), disc.length_scale)
+    engine = ENGINES[engine](model, None, NewtonOptions(), disc.length_scale)
     res = solve_static(engine, 2, on_step=steps.append, beam_names=[b.name for b in disc.beams])
     assert res.status == "failed" and res.steps == 0 and res.cutbacks == 0
     assert res.message.startswith("the stiffness matrix is singular: " + says), res.message
@@ -372,31 +381,32 @@ def _contact_pair(gap, upper_supports=(), lower_supports=None):
                                     "penalty": 1e5}, upper=upper)
 
 
-def _mechanism(case):
-    from beamcontact.assembly.model import initial_load_state
+def _mechanism(case, engine):
+    """The engine's reason for a singular tangent at the start of load stepping, with the
+    contact set as solve_static finds it."""
     from beamcontact.setup.contact import build_contact
-    from beamcontact.statics.step import mechanism_message
 
     model, disc = build_model(case)
     contact = build_contact(case, disc)
-    # the frozen set as solve_static finds it
-    cs = contact.frozen_set(model.x_ref, 0.5 * contact.reach,
-                            contact.first_capacity(contact.all_pairs))[0]
-    return mechanism_message(model, contact, cs, initial_load_state(model),
-                             [b.name for b in disc.beams])
+    statics = ENGINES[engine](model, contact, NewtonOptions(), disc.length_scale)
+    state = statics.initial()
+    cs = statics.complete_set(state, 0.5 * contact.reach,
+                              contact.first_capacity(contact.all_pairs))[0]
+    return statics.mechanism(state, cs, [b.name for b in disc.beams])
 
 
-def test_contact_can_hold_an_unsupported_beam():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_contact_can_hold_an_unsupported_beam(engine):
     """Pressed into a supported beam, a free beam is held by contact: no complaint; lifted
     off it, nothing holds it; two free beams pressed together still float as one: their
     energy is invariant under translations at any state, so those two modes are null
     vectors of the tangent (the rotation is not: the contact forces of the initial
     penetration are not zero, and the tangent of a rotation-invariant energy turns them)."""
-    assert _mechanism(_contact_pair(-3e-3)) is None
-    lifted = _mechanism(_contact_pair(1e-2))
+    assert _mechanism(_contact_pair(-3e-3), engine) is None
+    lifted = _mechanism(_contact_pair(1e-2), engine)
     assert "beam 'u' has 3 rigid-body modes not restrained by its supports or by contact" \
         in lifted
-    both = _mechanism(_contact_pair(-3e-3, lower_supports=[]))
+    both = _mechanism(_contact_pair(-3e-3, lower_supports=[]), engine)
     assert "beams 'b' and 'u' are held only by contact with each other: together they have " \
         "2 rigid-body modes" in both, both
 

@@ -784,24 +784,33 @@ def frozen_blocks(ne, law, pairs, W):
 
 
 @njit
-def step_set_at(x0, x_pred, v, a, h, motion, ne, law):
-    """The contact set of a step h chosen at its predictor x_pred (the twin of
-    :func:`step_set.step_set` and :func:`step_set.advanced_step` for IPIP "points" and
-    integrated laws), and the step after the conservative advancement: (pairs, W,
-    number of box candidates, h used). x0: the control points at the start, v, a their
-    velocities and accelerations (n_cp, 2), ``motion`` the bound of the predictor's
-    motion."""
+def frozen_set_at(x, motion, ne, law):
+    """The blocks and weights to freeze at configuration x for a motion of at most
+    ``motion`` (IPIP "points" or an integrated law; the twin of
+    :func:`step_set.step_set`, and of :meth:`problem.ContactProblem.frozen_set` in
+    statics): (pairs, W, number of box candidates)."""
     if law.points:
-        pairs = candidate_pairs(x_pred, ne, law.reach + motion)
+        pairs = candidate_pairs(x, ne, law.reach + motion)
         count = pairs.shape[0]
-        W = point_weights(block_gaps(x_pred, ne, pairs), pairs, ne, 2.0 * motion)
+        W = point_weights(block_gaps(x, ne, pairs), pairs, ne, 2.0 * motion)
         pairs, W = weighted_first(pairs, W)
-    else:
-        pairs, count = near_candidates(x_pred, ne, law.reach, law.interaction, motion)
-        ns = ne.R.shape[1]
-        W = np.empty((pairs.shape[0], ns, ns))
-        for p in range(pairs.shape[0]):
-            W[p] = arc_length_weights(ne, pairs[p, 0], pairs[p, 1])
+        return pairs, W, count
+    pairs, count = near_candidates(x, ne, law.reach, law.interaction, motion)
+    ns = ne.R.shape[1]
+    W = np.empty((pairs.shape[0], ns, ns))
+    for p in range(pairs.shape[0]):
+        W[p] = arc_length_weights(ne, pairs[p, 0], pairs[p, 1])
+    return pairs, W, count
+
+
+@njit
+def step_set_at(x0, x_pred, v, a, h, motion, ne, law):
+    """The contact set of a step h chosen at its predictor x_pred
+    (:func:`frozen_set_at`) and the step after the conservative advancement
+    (:func:`step_set.advanced_step`): (pairs, W, number of box candidates, h used). x0:
+    the control points at the start, v, a their velocities and accelerations (n_cp, 2),
+    ``motion`` the bound of the predictor's motion."""
+    pairs, W, count = frozen_set_at(x_pred, motion, ne, law)
     ratio = predictor_approach_ratio(x0, v, a, h, ne, pairs, law.slack)
     return pairs, W, count, h * min(1.0, ADVANCE_FRACTION / max(ratio, 1e-300))
 

@@ -13,7 +13,7 @@ reported in the order of :mod:`~beamcontact.dynamics.report`. The step controlle
 energy account and the rejection rules are the driver's (dynamics/driver.py), shared with
 the JAX engine.
 
-Contact enters as the frozen set of the step (:class:`_NativeContact`, the twin of
+Contact enters as the frozen set of the step (:class:`NativeContact`, the twin of
 contact/step_set.py): its blocks are added to the residual and the tangent at every
 Newton iterate (:func:`contact_blocks`); the contact energy of the solution is the one of
 the last iterate's evaluation, and the energy of the set at the start of the step is
@@ -65,7 +65,7 @@ from beamcontact.solvers.newton import NewtonOptions
 _V = {name: i for i, name in enumerate(VALUES)}
 
 
-def _beam_dofs(nm: nmod.NativeModel) -> list[np.ndarray]:
+def beam_dofs(nm: nmod.NativeModel) -> list[np.ndarray]:
     """The dofs of each beam: the control points that elements connect, as connected
     components (an ElementBlock may hold several beams of one degree)."""
     parent = np.arange(nm.x_ref.shape[0])
@@ -363,7 +363,7 @@ def native_law(contact, ne: ssn.NativeContactElements) -> ssn.NativeLaw:
                          np.ascontiguousarray((r1 + r2).reshape(E, E)))
 
 
-class _NativeContact:
+class NativeContact:
     """The contact set of a step on the native engine, the twin of
     :mod:`~beamcontact.contact.step_set` (all-pairs broad phase; no self-contact, no
     obstacles): chosen at the predictor, the step shortened by the conservative
@@ -378,18 +378,25 @@ class _NativeContact:
         self.law = native_law(contact, self.ne)
         self.zones = contact.law.closest_pairs and contact.law.pairing == "zones"
 
-    def set_at(self, x) -> tuple:
-        """The frozen set at configuration x with no motion (the start of a run)."""
+    def frozen_at(self, x, motion: float = 0.0) -> tuple:
+        """The frozen set at configuration x for a motion of at most ``motion`` (0: the
+        start of a run; the search margin of a load step)."""
         ne, law = self.ne, self.law
         if self.zones:
-            pairs = ssn.candidate_pairs(x, ne, law.reach)
-            cs = self.problem.closest_pair_set(pairs, ssn.block_gaps(x, ne, pairs), 0.0)
+            pairs = ssn.candidate_pairs(x, ne, law.reach + motion)
+            cs = self.problem.closest_pair_set(pairs, ssn.block_gaps(x, ne, pairs), motion)
             pairs, W = cs.pairs, cs.W
         else:
-            zero = np.zeros_like(x)
-            pairs, W = ssn.step_set_at(x, x, zero, zero, 1.0, 0.0, ne, law)[:2]
+            pairs, W = ssn.frozen_set_at(x, motion, ne, law)[:2]
         return ssn.frozen_blocks(ne, law, np.ascontiguousarray(pairs, dtype=np.int64),
                                  np.ascontiguousarray(W, dtype=np.float64))
+
+    def missed(self, x: np.ndarray, frozen: tuple) -> tuple[bool, float]:
+        """After a load step at x: (did the search at x find an interacting block the
+        frozen set lacks, the smallest surface gap)."""
+        missing, _, gap = ssn.missed_blocks(x, self.ne, frozen[2], self.law.reach,
+                                            self.law.interaction)
+        return bool(missing), float(gap)
 
     def choose(self, s: DynState, h: float, motion_factor: float, x_ref) -> _Chosen:
         """The set at the predictor of a step h and the step after the advancement."""
@@ -476,8 +483,8 @@ class NativeEngine:
                  dt_ref: float, contact=None):
         self.nm = nmod.native_arrays(model)
         self.contact = contact
-        self._contact = None if contact is None else _NativeContact(contact)
-        self.system = NativeSystem(self.nm, _beam_dofs(self.nm))
+        self._contact = None if contact is None else NativeContact(contact)
+        self.system = NativeSystem(self.nm, beam_dofs(self.nm))
         self.alpha, self.options = float(alpha), options
         self.utol = options.utol * length
         self.dt_ref = float(dt_ref)
@@ -509,7 +516,7 @@ class NativeEngine:
 
     def attempt(self, state: DynState, h: float, motion_factor: float, capacity) -> Attempt:
         """One attempt at a step of at most h from ``state``: the contact set at the
-        predictor and the conservative advancement (:class:`_NativeContact`), the compiled
+        predictor and the conservative advancement (:class:`NativeContact`), the compiled
         :func:`attempt`, the contact checks at the solution. The candidate lists have no
         fixed capacity here; their counts are reported as the JAX twin's are."""
         del capacity
@@ -614,7 +621,7 @@ class NativeEngine:
         # zero rotation and the reference tangent at every load point
         tangent = np.einsum("lk,lkd->ld", nm.load_dR, nm.x_ref[nm.load_conn])
         theta = np.zeros(tangent.shape[0])
-        frozen = NO_CONTACT if self._contact is None else self._contact.set_at(nm.x_ref)
+        frozen = NO_CONTACT if self._contact is None else self._contact.frozen_at(nm.x_ref)
         f_pot, a = np.empty(nm.n_dof), np.empty(nm.n_dof)
         initial_acceleration(nm, frozen, u, v, theta, tangent, sysm.position,
                              sysm.block_positions, sysm.free, ar.band, ar.B, ar.C, ar.D,
@@ -633,7 +640,7 @@ class NativeEngine:
         gap = np.nan
         if self._contact is not None:
             x = self.nm.x_ref + s.u.reshape(-1, 2)
-            frozen = self._contact.set_at(x)
+            frozen = self._contact.frozen_at(x)
             values[V_CONTACT] = contact_energy(self.nm, frozen, s.u)
             gap = self._contact.min_gap(x, frozen)
         return {**{k: float(values[_V[k]]) for k in

@@ -3,9 +3,12 @@
 
 :func:`prepare` discretises the case and builds the model, the contact problem and the
 Newton settings; :func:`static_engine` is the engine of load stepping
-(:class:`~beamcontact.statics.step.JaxStatics`); :func:`dynamic_start` adds the engine of
-the time loop (:class:`~beamcontact.dynamics.step.JaxEngine`), the step controller's
-settings and the consistent state at t = 0 (paper Sec. 4: M a0 = f(u0)).
+(:class:`~beamcontact.statics.native_step.NativeStatics` or
+:class:`~beamcontact.statics.step.JaxStatics`); :func:`dynamic_start` adds the engine of
+the time loop (:class:`~beamcontact.dynamics.native_step.NativeEngine` or
+:class:`~beamcontact.dynamics.step.JaxEngine`), the step controller's settings and the
+consistent state at t = 0 (paper Sec. 4: M a0 = f(u0)). :func:`choose_engine` says
+which engine runs a case and why.
 """
 
 from dataclasses import dataclass
@@ -61,10 +64,17 @@ def prepare(case: Case) -> Prepared:
 
 
 def static_engine(prepared: Prepared):
-    """The engine of load stepping (:class:`~beamcontact.statics.step.JaxStatics`)."""
+    """The engine of load stepping (:func:`choose_engine`):
+    :class:`~beamcontact.statics.native_step.NativeStatics` or
+    :class:`~beamcontact.statics.step.JaxStatics`."""
+    contact = prepared.contact
+    if choose_engine(prepared.case, None if contact is None else contact.law)[0] == "native":
+        from beamcontact.statics.native_step import NativeStatics
+
+        return NativeStatics(prepared.model, contact, prepared.options, prepared.length)
     from beamcontact.statics.step import JaxStatics
 
-    return JaxStatics(prepared.model, prepared.contact, prepared.options, prepared.length)
+    return JaxStatics(prepared.model, contact, prepared.options, prepared.length)
 
 
 def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
@@ -115,8 +125,6 @@ def step_control(case: Case):
 def native_unsupported(case: Case, law=None) -> str | None:
     """What of ``case`` (with its contact law object ``law``, when built) has no native
     kernel yet (None: the native engine runs it all)."""
-    if case.analysis.kind != "dynamic":
-        return "load stepping (analysis.kind = \"static\")"
     if case.contact.model == "none":
         return None
     if law is not None and type(law) not in _NATIVE_LAWS:
