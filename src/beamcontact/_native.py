@@ -100,6 +100,29 @@ def jitable(func):
     return numba.extending.register_jitable(func)
 
 
+def njit_parallel(func):
+    """:func:`njit` with ``parallel=True``: its ``numba.prange`` loops run on the cores
+    (``NUMBA_NUM_THREADS``, or :func:`single_thread`). Used only where every iteration
+    writes its own outputs, so that results do not depend on the number of threads."""
+    if _CACHE_DIR is None:
+        return numba.njit(func, cache=False, parallel=True, **_OPTIONS)
+    saved = numba.config.CACHE_DIR
+    numba.config.CACHE_DIR = str(_CACHE_DIR)
+    try:
+        return numba.njit(func, cache=True, parallel=True, **_OPTIONS)
+    finally:
+        numba.config.CACHE_DIR = saved
+
+
+def single_thread() -> None:
+    """Run the parallel kernels of this process on one thread (a sweep's worker: the
+    cores are shared out between workers already)."""
+    numba.set_num_threads(1)
+
+
+prange = numba.prange
+
+
 def njit(func):
     """``numba.njit(func, cache=True, fastmath=False, error_model="numpy", nogil=True)``
     with the on-disk cache in the project's folder (compiled anew each process when the

@@ -87,12 +87,16 @@ def run_member(member: Member, run_dir: str | Path, report: Progress | None = No
 def _run_on_worker(member: Member, run_dir: str) -> dict:
     """run_member on a Dask worker, reporting progress as worker events (twice a second).
 
-    The runner hands a ProgressInfo to ``report``; the event carries only its fraction and
-    its text (``{"run", "fraction", "info"}``, JSON-simple, so that any scheduler passes it on
-    and the client needs no beamcontact class to read it).
+    The native kernels run on one thread here (a worker's run has its core). The runner
+    hands a ProgressInfo to ``report``; the event carries only its fraction and its text
+    (``{"run", "fraction", "info"}``, JSON-simple, so that any scheduler passes it on and
+    the client needs no beamcontact class to read it).
     """
     from distributed import get_worker
 
+    from beamcontact._native import single_thread
+
+    single_thread()  # the runs of a sweep share the cores out already
     worker, last = get_worker(), [-1.0]
 
     def send(fraction: float, info: str) -> None:

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from beamcontact._native import njit
+from beamcontact._native import njit, njit_parallel, prange
 from beamcontact.contact.laws.coarse_grained_native import cg_obstacle, cg_pair_s
 from beamcontact.contact.laws.penalty_native import penalty_obstacle, penalty_pair_s
 
@@ -240,6 +240,25 @@ def _add_second_element(f, k, o, R2, sums2, active2):
             f[o + 2 * b] -= R2[j, b] * sums2[j, 0]
             f[o + 2 * b + 1] -= R2[j, b] * sums2[j, 1]
         _add_diagonal_block(k, o, R2[j], sums2[j, 2], sums2[j, 3], sums2[j, 4])
+
+
+@njit_parallel
+def blocks_into(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, F, K, energies):
+    """Every element pair of a frozen set at once, on the cores: block p = pairs[p] of
+    elements with control points conn[e] at x (n_cp, 2) and basis rows R[e], weights
+    W[p], R12[p] and amplitudes[p] (:func:`block_into`) into F[p] (its gradient), K[p]
+    (its Hessian) and energies[p]. Each block is computed whole by one thread, exactly
+    as alone, so the caller's sums in block order do not depend on the threads."""
+    n_loc = conn.shape[1]
+    for p in prange(pairs.shape[0]):
+        e1, e2 = pairs[p, 0], pairs[p, 1]
+        X1, X2 = np.empty((n_loc, 2)), np.empty((n_loc, 2))
+        for a in range(n_loc):
+            c1, c2 = conn[e1, a], conn[e2, a]
+            X1[a, 0], X1[a, 1] = x[c1, 0], x[c1, 1]
+            X2[a, 0], X2[a, 1] = x[c2, 0], x[c2, 1]
+        energies[p] = block_into(law, X1, X2, R[e1], R[e2], W[p], R12[p], amplitudes[p], m,
+                                 q_reg, cutoff, F[p], K[p])
 
 
 @njit

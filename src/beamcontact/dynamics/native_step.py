@@ -282,21 +282,20 @@ def contact_blocks(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
     (:func:`~beamcontact.contact.blocks.block_forces`)."""
     n_loc = ce_conn.shape[1]
     k2 = 4 * n_loc
-    f = np.empty(k2)
-    kb = np.empty((k2, k2))
+    n_pairs = pairs.shape[0]
+    F, K, energies = np.empty((n_pairs, k2)), np.empty((n_pairs, k2, k2)), np.empty(n_pairs)
+    blocks_native.blocks_into(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
+                              F, K, energies)
     dofs = np.empty(k2, dtype=np.int64)
-    X1, X2 = np.empty((n_loc, 2)), np.empty((n_loc, 2))
     energy = 0.0
-    for p in range(pairs.shape[0]):
+    for p in range(n_pairs):
         e1, e2 = pairs[p, 0], pairs[p, 1]
         for a in range(n_loc):
             c1, c2 = ce_conn[e1, a], ce_conn[e2, a]
-            X1[a, 0], X1[a, 1] = x[c1, 0], x[c1, 1]
-            X2[a, 0], X2[a, 1] = x[c2, 0], x[c2, 1]
             dofs[2 * a], dofs[2 * a + 1] = 2 * c1, 2 * c1 + 1
             dofs[2 * n_loc + 2 * a], dofs[2 * n_loc + 2 * a + 1] = 2 * c2, 2 * c2 + 1
-        energy += blocks_native.block_into(law, X1, X2, ce_R[e1], ce_R[e2], W[p], R12[p],
-                                           amps[p], m, q_reg, cutoff, f, kb)
+        energy += energies[p]
+        f, kb = F[p], K[p]
         for i in range(k2):
             r_pot[dofs[i]] += f[i]
             r[dofs[i]] += scale * f[i]
