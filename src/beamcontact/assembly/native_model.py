@@ -43,7 +43,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._native import njit
+from beamcontact._native import njit, njit_parallel, prange
 from beamcontact.beam import energy_native, inertia_native, loads_native
 
 
@@ -299,31 +299,40 @@ def energies(nm, u, lam, theta_n, t_n):
     return e_strain, lam * e_grav, e_ext
 
 
-@njit
-def _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, add):
-    """The inertia residual added to r_out and its element blocks written into
-    k_out[:n_el], or added to them if ``add``."""
-    shape = nm.x_ref.shape
-    u2, un2, vn2, an2 = (u.reshape(shape), u_n.reshape(shape), v_n.reshape(shape),
-                         a_n.reshape(shape))
-    n_el, n = nm.conn.shape
-    w_e = np.empty((5, n, 2))
-    r_e = np.empty(2 * n)
-    k_e = np.empty((2 * n, 2 * n))
-    for e in range(n_el):
-        c = nm.conn[e]
+@njit_parallel
+def _inertia_elements(conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref, rho_area,
+                      rho_inertia, r_el, k_el):
+    """Every element's inertia residual into r_el[e] and its block into k_el[e], the
+    elements on the cores (each whole on one thread)."""
+    n_el, n = conn.shape
+    for e in prange(n_el):
+        w_e = np.empty((5, n, 2))
+        c = conn[e]
         _gather(u2, c, w_e[0])
         _gather(un2, c, w_e[1])
         _gather(vn2, c, w_e[2])
         _gather(an2, c, w_e[3])
-        _gather(nm.x_ref, c, w_e[4])
-        k = k_e if add else k_out[e]
+        _gather(x_ref, c, w_e[4])
         inertia_native.element_inertia_residual_tangent(
-            w_e[0], w_e[1], w_e[2], w_e[3], w_e[4], coeffs, nm.R[e], nm.dR[e], nm.wq[e],
-            nm.g_ref[e], nm.rho_area[e], nm.rho_inertia[e], r_e, k)
-        _scatter_add(nm.block_dofs[e], r_e, r_out)
+            w_e[0], w_e[1], w_e[2], w_e[3], w_e[4], coeffs, R[e], dR[e], wq[e], g_ref[e],
+            rho_area[e], rho_inertia[e], r_el[e], k_el[e])
+
+
+@njit
+def _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, add):
+    """The inertia residual added to r_out and its element blocks written into
+    k_out[:n_el], or added to them if ``add`` (in element order, whatever the threads)."""
+    shape = nm.x_ref.shape
+    n_el, n = nm.conn.shape
+    r_el = np.empty((n_el, 2 * n))
+    k_el = np.empty((n_el, 2 * n, 2 * n)) if add else k_out
+    _inertia_elements(nm.conn, nm.x_ref, u.reshape(shape), u_n.reshape(shape),
+                      v_n.reshape(shape), a_n.reshape(shape), coeffs, nm.R, nm.dR, nm.wq,
+                      nm.g_ref, nm.rho_area, nm.rho_inertia, r_el, k_el)
+    for e in range(n_el):
+        _scatter_add(nm.block_dofs[e], r_el[e], r_out)
         if add:
-            k_out[e] += k_e
+            k_out[e] += k_el[e]
 
 
 @njit

@@ -23,7 +23,7 @@ few scratch numbers per call (per block for :func:`block_strain_residual_tangent
 
 import numpy as np
 
-from beamcontact._native import njit
+from beamcontact._native import njit, njit_parallel, prange
 
 
 @njit
@@ -208,21 +208,24 @@ def element_strain_energy(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E):
     return energy
 
 
-@njit
+@njit_parallel
 def block_strain_residual_tangent(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out,
                                   k_out):
     """:func:`element_strain_residual_tangent` of every element of an ElementBlock
     (fields as in assembly/model.py; x the control points of the whole model (n_cp, 2)),
-    into r_out (n_el, 2n) and k_out (n_el, 2n, 2n); returns the total strain energy."""
+    into r_out (n_el, 2n) and k_out (n_el, 2n, 2n); returns the total strain energy. The
+    elements on the cores, each whole on one thread: no sum depends on the threads."""
     n_el, n = conn.shape
-    x_e = np.empty((n, 2))
-    grad = np.empty(4)
-    hess = np.empty((4, 4))
-    energy = 0.0
-    for e in range(n_el):
+    energies = np.empty(n_el)
+    for e in prange(n_el):
+        x_e = np.empty((n, 2))
         for k in range(n):
             x_e[k, 0] = x[conn[e, k], 0]
             x_e[k, 1] = x[conn[e, k], 1]
-        energy += _element(x_e, dR[e], ddR[e], wq[e], g_ref[e], K_ref[e], eta[e], w_eta[e],
-                           E[e], r_out[e], k_out[e], grad, hess)
+        energies[e] = _element(x_e, dR[e], ddR[e], wq[e], g_ref[e], K_ref[e], eta[e],
+                               w_eta[e], E[e], r_out[e], k_out[e], np.empty(4),
+                               np.empty((4, 4)))
+    energy = 0.0
+    for e in range(n_el):  # in element order, whatever the threads
+        energy += energies[e]
     return energy
