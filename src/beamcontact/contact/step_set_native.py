@@ -47,7 +47,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._native import njit
+from beamcontact._native import njit, njit_parallel, prange
 from beamcontact.contact.blocks_native import bounding_box
 from beamcontact.dynamics.control import ADVANCE_FRACTION
 
@@ -375,9 +375,11 @@ def arc_length_weights(ne, e1, e2):
     beam, allowed, s, exclusion, w = ne.beam, ne.allowed, ne.s, ne.exclusion, ne.w
     ns = w.shape[1]
     W = np.empty((ns, ns))
+    # two beams that interact: every pair may touch, no test per pair
+    whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
     for i in range(ns):
         for j in range(ns):
-            ok = _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)
+            ok = whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)
             W[i, j] = w[e1, i] * w[e2, j] if ok else 0.0
     return W
 
@@ -390,17 +392,25 @@ def near_blocks(x, ne, pairs, limit):
     """The blocks of ``pairs`` with a point pair closer than ``limit`` (centre-line
     distance at x), in their original order (:func:`blocks.near_blocks`: its real rows).
     A block whose point boxes are ``limit`` apart is dropped unseen, and the search of a
-    block stops at its first close pair."""
-    beam, allowed, s, exclusion = ne.beam, ne.allowed, ne.s, ne.exclusion
-    E, ns = ne.conn.shape[0], ne.R.shape[1]
+    block stops at its first close pair; the blocks are searched on the cores."""
+    E = ne.conn.shape[0]
     P = _pair_points(x, ne.conn, ne.R, pairs)
     box = _point_boxes(P, pairs, E)
+    keep = _near_flags(P, box, pairs, limit, ne.beam, ne.allowed, ne.s, ne.exclusion)
+    return pairs[keep].copy()
+
+
+@njit_parallel
+def _near_flags(P, box, pairs, limit, beam, allowed, s, exclusion):
+    """Whether each block of ``pairs`` has a point pair of P closer than ``limit``."""
+    ns = P.shape[1]
     keep = np.zeros(pairs.shape[0], dtype=np.bool_)
-    for c in range(pairs.shape[0]):
+    for c in prange(pairs.shape[0]):
         e1, e2 = pairs[c, 0], pairs[c, 1]
         if _box_distance(box[e1], box[e2]) >= limit:
             continue
         whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
+        found = False
         for i in range(ns):
             for j in range(ns):
                 rx = P[e1, i, 0] - P[e2, j, 0]
@@ -409,11 +419,12 @@ def near_blocks(x, ne, pairs, limit):
                 if (math.sqrt(rx * rx + ry * ry) < limit
                         and (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2,
                                                        i, j))):
-                    keep[c] = True
+                    found = True
                     break
-            if keep[c]:
+            if found:
                 break
-    return pairs[keep].copy()
+        keep[c] = found
+    return keep
 
 
 @njit
@@ -701,7 +712,6 @@ def missed_blocks(x, ne, frozen_pairs, reach, interaction):
     padding) are ignored; its order does not matter."""
     E = ne.conn.shape[0]
     beam, allowed, s, exclusion = ne.beam, ne.allowed, ne.s, ne.exclusion
-    ns = ne.R.shape[1]
     frozen = np.zeros((E, E), dtype=np.bool_)
     for c in range(frozen_pairs.shape[0]):
         e1, e2 = frozen_pairs[c, 0], frozen_pairs[c, 1]
@@ -711,35 +721,69 @@ def missed_blocks(x, ne, frozen_pairs, reach, interaction):
     P = _pair_points(x, ne.conn, ne.R, pairs)
     box = _point_boxes(P, pairs, E)
     radius = ne.radius
-    # the blocks nearest first; a block is skipped unseen when its point boxes are
-    # further apart than the gap found and, if not frozen, than the interaction distance
+    # a block is skipped unseen when its point boxes are further apart than the gap found
+    # and, if not frozen, than the interaction distance: the nearest block first, alone,
+    # then the others on the cores, each from the gap of that one
     near = np.empty(pairs.shape[0])
+    first = -1
     for c in range(pairs.shape[0]):
         near[c] = _box_distance(box[pairs[c, 0]], box[pairs[c, 1]]) * (1.0 - _BOUND_MARGIN)
+        if first < 0 or near[c] < near[first]:
+            first = c
     missing = False
     gap = math.inf
-    for c in _ascending(near):
-        e1, e2 = pairs[c, 0], pairs[c, 1]
-        r12 = radius[e1] + radius[e2]
-        check = not (missing or frozen[e1, e2])
-        if near[c] - r12 >= gap and not (check and near[c] < interaction):
-            continue
-        whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
-        nearest = math.inf
-        for i in range(ns):
-            for j in range(ns):
-                rx = P[e1, i, 0] - P[e2, j, 0]
-                ry = P[e1, i, 1] - P[e2, j, 1]
-                d = math.sqrt(rx * rx + ry * ry)
-                if not (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)):
-                    d = math.inf
-                nearest = min(nearest, d)
-                gap = min(gap, d - r12)
-        if check and nearest < interaction:
-            missing = True
+    if first >= 0:
+        missing, gap = _block_missed(first, False, math.inf, pairs, P, near, frozen, radius,
+                                     interaction, beam, allowed, s, exclusion)
+        flags, gaps = _blocks_missed(first, missing, gap, pairs, P, near, frozen, radius,
+                                     interaction, beam, allowed, s, exclusion)
+        for c in range(pairs.shape[0]):
+            missing = missing or flags[c]
+            gap = min(gap, gaps[c])
     if not np.isfinite(gap):
         gap = box_gap_lower_bound(x, ne, reach)
     return missing, pairs.shape[0], gap
+
+
+@njit_parallel
+def _blocks_missed(first, missing, gap, pairs, P, near, frozen, radius, interaction, beam,
+                   allowed, s, exclusion):
+    """:func:`_block_missed` of every block but ``first``, on the cores, each from the
+    ``missing`` and ``gap`` of that one: (missed flags, gaps)."""
+    flags = np.zeros(pairs.shape[0], dtype=np.bool_)
+    gaps = np.full(pairs.shape[0], math.inf)
+    for c in prange(pairs.shape[0]):
+        if c != first:
+            flags[c], gaps[c] = _block_missed(c, missing, gap, pairs, P, near, frozen,
+                                              radius, interaction, beam, allowed, s,
+                                              exclusion)
+    return flags, gaps
+
+
+@njit
+def _block_missed(c, missing, gap, pairs, P, near, frozen, radius, interaction, beam,
+                  allowed, s, exclusion):
+    """(an interacting block c missing from ``frozen``, the smallest gap of its point pairs
+    or ``gap``), given a block already ``missing`` and a ``gap`` already found (the
+    arithmetic of :func:`missed_blocks`)."""
+    ns = P.shape[1]
+    e1, e2 = pairs[c, 0], pairs[c, 1]
+    r12 = radius[e1] + radius[e2]
+    check = not (missing or frozen[e1, e2])
+    if near[c] - r12 >= gap and not (check and near[c] < interaction):
+        return False, gap
+    whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
+    nearest = math.inf
+    for i in range(ns):
+        for j in range(ns):
+            rx = P[e1, i, 0] - P[e2, j, 0]
+            ry = P[e1, i, 1] - P[e2, j, 1]
+            d = math.sqrt(rx * rx + ry * ry)
+            if not (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)):
+                d = math.inf
+            nearest = min(nearest, d)
+            gap = min(gap, d - r12)
+    return check and nearest < interaction, gap
 
 
 # ---------------------------------------------------------------- the set of one step
