@@ -49,7 +49,7 @@ import numpy as np
 
 from beamcontact._native import njit, njit_parallel, prange
 from beamcontact.contact.blocks_native import bounding_box
-from beamcontact.dynamics.control import ADVANCE_FRACTION
+from beamcontact.dynamics.control import ADVANCE_ACCEPT, ADVANCE_FRACTION
 
 # the tie rule of point_weights_on_device: two gaps are equal within RTOL max(1, |q|)
 RTOL = 1e-9
@@ -571,9 +571,9 @@ def closest_points(x_pred, ne, reach, motion, rtol=RTOL):
 
 
 @njit
-def approach_ratio(x0, fields, ne, pairs, slack):
+def approach_ratio(x0, fields, ne, pairs, slack, at_least=0.0):
     """Largest approach_ij / (q_ij + s) over the point pairs of the blocks ``pairs``
-    (:func:`advance.approach_ratio`).
+    (:func:`advance.approach_ratio`), or ``at_least`` if that is larger.
 
     Args:
         x0: control points at the start of the step (n_cp, 2).
@@ -581,6 +581,8 @@ def approach_ratio(x0, fields, ne, pairs, slack):
             pair is the sum over the fields of max(0, -n . dr) (one field: the actual
             motion; two: the predictor's h v and h^2 a / 2).
         slack: s, the distance added to the gap.
+        at_least: a ratio below which the caller needs no value (the threshold of its
+            test): blocks, rows and pairs that cannot exceed it are skipped unseen.
 
     0 when no pair approaches; pairs with room q + s <= s / 100 are left out (in contact).
     Rows at or beyond E (the JAX padding) are skipped, so a JAX list may be passed as is.
@@ -621,7 +623,7 @@ def approach_ratio(x0, fields, ne, pairs, slack):
             room = _room_bound(box[e1], box[e2], radius[e1] + radius[e2], slack)
             bound[c] = (math.inf if room <= floor
                         else (motion_max[e1] + motion_max[e2]) / room)
-    ratio = 0.0
+    ratio = at_least
     for c in _ascending(-bound):
         e1, e2 = pairs[c, 0], pairs[c, 1]
         if e1 >= E or e2 >= E:
@@ -673,7 +675,7 @@ def _room_bound(a, b, r12, slack):
 
 
 @njit
-def predictor_approach_ratio(x0, v, a, h, ne, pairs, slack):
+def predictor_approach_ratio(x0, v, a, h, ne, pairs, slack, at_least=0.0):
     """:func:`approach_ratio` of the predictor's motion split into h v and h^2 a / 2 (the
     ratio of :func:`step_set.advanced_step`); v, a the control-point velocities and
     accelerations (n_cp, 2)."""
@@ -683,18 +685,18 @@ def predictor_approach_ratio(x0, v, a, h, ne, pairs, slack):
         for d in range(2):
             fields[0, p, d] = h * v[p, d]
             fields[1, p, d] = c * a[p, d]
-    return approach_ratio(x0, fields, ne, pairs, slack)
+    return approach_ratio(x0, fields, ne, pairs, slack, at_least)
 
 
 @njit
-def step_approach_ratio(x0, x_new, ne, pairs, slack):
+def step_approach_ratio(x0, x_new, ne, pairs, slack, at_least=0.0):
     """:func:`approach_ratio` of the actual displacement x_new - x0 of a step (the
     ``approach`` of :func:`step_set.after_step`)."""
     fields = np.empty((1, x0.shape[0], 2))
     for p in range(x0.shape[0]):
         for d in range(2):
             fields[0, p, d] = x_new[p, d] - x0[p, d]
-    return approach_ratio(x0, fields, ne, pairs, slack)
+    return approach_ratio(x0, fields, ne, pairs, slack, at_least)
 
 
 # ------------------------------------------------------------------- post-step check
@@ -855,7 +857,8 @@ def step_set_at(x0, x_pred, v, a, h, motion, ne, law):
     the control points at the start, v, a their velocities and accelerations (n_cp, 2),
     ``motion`` the bound of the predictor's motion."""
     pairs, W, count = frozen_set_at(x_pred, motion, ne, law)
-    ratio = predictor_approach_ratio(x0, v, a, h, ne, pairs, law.slack)
+    # a ratio up to ADVANCE_FRACTION leaves the step as it is: no need to know it
+    ratio = predictor_approach_ratio(x0, v, a, h, ne, pairs, law.slack, ADVANCE_FRACTION)
     return pairs, W, count, h * min(1.0, ADVANCE_FRACTION / max(ratio, 1e-300))
 
 
@@ -864,11 +867,14 @@ def after_step(x0, x_new, x_pred, motion, ne, law, pairs):
     """The checks after a step from x0 to x_new under the frozen blocks ``pairs``
     (:func:`step_set.after_step`): (a block was missed or the solution left the
     predictor's motion bound, number of box candidates at x_new, smallest surface gap,
-    the largest approach ratio of the step)."""
+    the largest approach ratio of the step, or ADVANCE_ACCEPT if it is not larger: the
+    controller's test needs no more)."""
     missing, count, gap = missed_blocks(x_new, ne, pairs, law.reach, law.interaction)
     worst = 0.0
     for p in range(x_new.shape[0]):
         dx, dy = x_new[p, 0] - x_pred[p, 0], x_new[p, 1] - x_pred[p, 1]
         worst = max(worst, math.sqrt(dx * dx + dy * dy))
     missing = missing or worst > motion + 1e-6 * law.reach
-    return missing, count, gap, step_approach_ratio(x0, x_new, ne, pairs, law.slack)
+    # the controller tests approach > ADVANCE_ACCEPT: a smaller value is not needed
+    return missing, count, gap, step_approach_ratio(x0, x_new, ne, pairs, law.slack,
+                                                    ADVANCE_ACCEPT)

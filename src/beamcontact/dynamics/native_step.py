@@ -410,7 +410,8 @@ class NativeContact:
         cs = self.problem.closest_pair_set(candidates, ssn.block_gaps(x_pred, ne, candidates),
                                            motion)
         pairs = np.ascontiguousarray(cs.pairs, dtype=np.int64)
-        ratio = ssn.predictor_approach_ratio(x0, v2, a2, h, ne, pairs, law.slack)
+        ratio = ssn.predictor_approach_ratio(x0, v2, a2, h, ne, pairs, law.slack,
+                                             ADVANCE_FRACTION)
         h_used = h * min(1.0, ADVANCE_FRACTION / max(ratio, 1e-300))
         return _Chosen(ssn.frozen_blocks(ne, law, pairs, np.ascontiguousarray(cs.W,
                                                                            dtype=np.float64)),
