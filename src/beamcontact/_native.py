@@ -103,7 +103,13 @@ def jitable(func):
 def njit_parallel(func):
     """:func:`njit` with ``parallel=True``: its ``numba.prange`` loops run on the cores
     (``NUMBA_NUM_THREADS``, or :func:`single_thread`). Used only where every iteration
-    writes its own outputs, so that results do not depend on the number of threads."""
+    writes its own outputs, so that results do not depend on the number of threads.
+
+    Numba starts its pool of threads when it compiles a parallel kernel or when Python
+    calls one; a kernel loaded from the cache and called from another compiled function
+    would find no pool (a segmentation fault, seen with the statics' Newton solve), so the
+    pool is started here, with the first parallel kernel."""
+    numba.get_num_threads()  # starts the pool (once)
     if _CACHE_DIR is None:
         return numba.njit(func, cache=False, parallel=True, **_OPTIONS)
     saved = numba.config.CACHE_DIR
