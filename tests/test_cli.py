@@ -217,8 +217,11 @@ def test_compilation_cache_location_and_identical_results(tmp_path, monkeypatch,
     assert any((tmp_path / "cache").iterdir())  # the compiled step was stored
     if engine == "jax":  # and its traced program (the third run embeds it, not tracing)
         assert any((tmp_path / "cache" / "exported").glob("fused_attempt-*.hlo"))
-    else:  # the native kernels, in a folder of their own
+    else:  # the native kernels, in a folder of their own, the time loop compiled by the
+        # helper beside the first run (beamcontact._warmup), which is done and gone
         assert any((tmp_path / "cache" / "numba").rglob("*.nbi"))
+        assert any((tmp_path / "cache" / "numba").glob("*/loop.ready"))
+        assert not any((tmp_path / "cache" / "numba").glob("*/loop.lock"))
     assert all(run == runs[0] for run in runs)
 
 

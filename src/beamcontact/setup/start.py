@@ -90,7 +90,10 @@ def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
     v0 = uniform_velocities(prepared.disc, [b.initial_velocity for b in case.beams])
     name, _ = choose_engine(case, None if contact is None else contact.law)
     if name == "native":
+        from beamcontact import _warmup
         from beamcontact.dynamics.native_step import NativeEngine
+
+        _warmup.start_if_cold()  # the time loop compiles beside the start, if not cached
 
         engine = NativeEngine(model, an.alpha, prepared.options, prepared.length, an.dt,
                               contact)

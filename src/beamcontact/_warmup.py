@@ -1,0 +1,150 @@
+"""Compiling the native time loop in a helper process while a run with empty caches
+compiles the rest (docs/engines.md, "Compilation").
+
+With empty caches the native kernels take about 90 s to compile on one core, 40 s of it
+the compiled time loop (:func:`beamcontact.dynamics.native_loop.run`), which a run needs
+only after its start (the initial acceleration, the first energies and the contact set
+at t = 0, themselves about 50 s). The loop's signature is the same for every model, so a
+helper process compiles it on a tiny model of its own, into the shared cache, while the
+run compiles its start on the other core; the run then waits for the helper and loads the
+loop from the cache. One helper per cache: the first run that finds the cache without the
+loop takes a lock file and starts it, the others wait for it too.
+
+Files in the kernel cache folder (``_native._CACHE_DIR``): ``loop.ready`` once the loop
+is in the cache, ``loop.lock`` (the helper's process id) while it compiles. Without a
+cache (``BEAMCONTACT_CACHE_DIR=""``) nothing of this runs.
+"""
+
+import contextlib
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from beamcontact import _native
+
+# a helper that takes longer than this (or a lock older than it) is given up: the run
+# compiles the loop itself
+GIVE_UP_S = 900.0
+
+_helper: subprocess.Popen | None = None
+# set in the helper's environment: it neither starts nor waits for a helper
+_IN_HELPER = "BEAMCONTACT_WARMUP_HELPER"
+
+
+def _files() -> tuple[Path, Path] | None:
+    folder = _native._CACHE_DIR
+    if folder is None or os.environ.get(_IN_HELPER):
+        return None
+    return folder / "loop.ready", folder / "loop.lock"
+
+
+def loop_ready() -> None:
+    """Mark the loop as compiled into the cache (after its first call in any process)."""
+    folder = _native._CACHE_DIR
+    if folder is not None:
+        with contextlib.suppress(OSError):
+            (folder / "loop.ready").touch()
+
+
+def start_if_cold() -> None:
+    """Start the helper if the cache lacks the compiled loop and no helper runs."""
+    global _helper
+    files = _files()
+    if files is None or _helper is not None or files[0].exists():
+        return None
+    lock = files[1]
+    try:
+        fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+    except FileExistsError:
+        try:
+            if time.time() - lock.stat().st_mtime < GIVE_UP_S:
+                return None  # another run's helper compiles it
+            lock.unlink()  # left by a helper that died
+        except OSError:
+            return None
+        return start_if_cold()
+    except OSError:
+        return None
+    try:
+        _helper = subprocess.Popen([sys.executable, "-m", "beamcontact._warmup"],
+                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.DEVNULL,
+                                   env={**os.environ, _IN_HELPER: "1",
+                                        # this process's cache, whatever the environment
+                                        # says now
+                                        "BEAMCONTACT_CACHE_DIR":
+                                            str(_native._CACHE_DIR.parent.parent)})
+        os.write(fd, str(_helper.pid).encode())
+    except OSError:
+        lock.unlink(missing_ok=True)
+    finally:
+        os.close(fd)
+
+
+def wait() -> None:
+    """Before the loop's first call: wait for a helper compiling it (this process's, or
+    another run's), at most GIVE_UP_S."""
+    global _helper
+    files = _files()
+    if files is None:
+        return
+    ready, lock = files
+    if _helper is not None:
+        try:
+            _helper.wait(timeout=GIVE_UP_S)
+        except subprocess.TimeoutExpired:
+            _helper.kill()
+            _helper.wait()
+        _helper = None
+        lock.unlink(missing_ok=True)
+        return
+    deadline = time.monotonic() + GIVE_UP_S
+    while lock.exists() and not ready.exists() and time.monotonic() < deadline:
+        time.sleep(0.2)
+
+
+def _compile_loop() -> None:
+    """The helper: one step of a tiny model with coarse-grained contact, which compiles
+    the loop (and the kernels it calls) into the cache."""
+    import numpy as np
+
+    from beamcontact import enable_x64
+    from beamcontact.assembly.model import LoadState
+    from beamcontact.dynamics.control import EnergyAccount, Limits, StepControl, new_state
+    from beamcontact.dynamics.hht import DynState
+    from beamcontact.dynamics.native_step import NativeEngine
+    from beamcontact.dynamics.report import DIAGNOSTICS
+    from beamcontact.io.case import parse_case
+    from beamcontact.setup.start import prepare
+
+    enable_x64()
+    beam = {"degree": 2, "elements": 1, "section": {"shape": "circle", "radius": 0.1},
+            "material": {"E": 1e6, "density": 1000.0}}
+    case = parse_case({
+        "analysis": {"kind": "dynamic", "t_end": 1e-3, "dt": 1e-3},
+        "beams": [{**beam, "name": "a", "line": {"start": [0.0, 0.0], "end": [1.0, 0.0]},
+                   "supports": [{"at": "start", "type": "clamped"}]},
+                  {**beam, "name": "b", "line": {"start": [0.0, 0.25], "end": [1.0, 0.25]},
+                   "supports": [{"at": "start", "type": "clamped"}]}],
+        "contact": {"model": "cg", "segments_per_element": 2}})
+    p = prepare(case)
+    engine = NativeEngine(p.model, 0.0, p.options, p.length, 1e-3, p.contact)
+    nm = engine.nm
+    tangent = np.einsum("lk,lkd->ld", nm.load_dR, nm.x_ref[nm.load_conn])
+    zero = np.zeros(nm.n_dof)
+    state = DynState(0.0, zero, zero.copy(), zero.copy(), zero.copy(),
+                     LoadState(theta=np.zeros(tangent.shape[0]), tangent=tangent))
+    account = EnergyAccount(0.0, 0.0, dict.fromkeys(DIAGNOSTICS, 0.0))
+    limits = Limits.of(StepControl(1e-3, 1e-9), 1e-3, p.length, p.contact.max_penetration)
+    engine.advance(state, new_state(0.0, 1e-3, account), limits, lambda *_: None)
+
+
+if __name__ == "__main__":
+    try:
+        _compile_loop()
+        loop_ready()
+    finally:
+        if _native._CACHE_DIR is not None:
+            (_native._CACHE_DIR / "loop.lock").unlink(missing_ok=True)
