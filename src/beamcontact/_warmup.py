@@ -10,12 +10,14 @@ run compiles its start on the other core; the run then waits for the helper and 
 loop from the cache. One helper per cache: the first run that finds the cache without the
 loop takes a lock file and starts it, the others wait for it too.
 
-Files in the kernel cache folder (``_native._CACHE_DIR``): ``loop.ready`` once the loop
-is in the cache, ``loop.lock`` (the helper's process id) while it compiles. Without a
+Files in the kernel cache folder (``_native._CACHE_DIR``), one pair per install:
+``loop-<key>.ready`` once the loop is in the cache, ``loop-<key>.lock`` (the helper's
+process id) while it compiles. Without a
 cache (``BEAMCONTACT_CACHE_DIR=""``) nothing of this runs.
 """
 
 import contextlib
+import hashlib
 import os
 import subprocess
 import sys
@@ -33,11 +35,21 @@ _helper: subprocess.Popen | None = None
 _IN_HELPER = "BEAMCONTACT_WARMUP_HELPER"
 
 
+def _names() -> tuple[str, str]:
+    """The names of the ready mark and the lock: Numba keys its cache by the path of the
+    source file as well, so two installs of one version (two environments sharing the
+    cache folder) each have their own."""
+    source = Path(__file__).resolve().parent / "dynamics" / "native_loop.py"
+    key = hashlib.sha256(str(source).encode()).hexdigest()[:12]
+    return f"loop-{key}.ready", f"loop-{key}.lock"
+
+
 def _files() -> tuple[Path, Path] | None:
     folder = _native._CACHE_DIR
     if folder is None or os.environ.get(_IN_HELPER):
         return None
-    return folder / "loop.ready", folder / "loop.lock"
+    ready, lock = _names()
+    return folder / ready, folder / lock
 
 
 def loop_ready() -> None:
@@ -45,7 +57,7 @@ def loop_ready() -> None:
     folder = _native._CACHE_DIR
     if folder is not None:
         with contextlib.suppress(OSError):
-            (folder / "loop.ready").touch()
+            (folder / _names()[0]).touch()
 
 
 def start_if_cold() -> None:
@@ -147,4 +159,4 @@ if __name__ == "__main__":
         loop_ready()
     finally:
         if _native._CACHE_DIR is not None:
-            (_native._CACHE_DIR / "loop.lock").unlink(missing_ok=True)
+            (_native._CACHE_DIR / _names()[1]).unlink(missing_ok=True)
