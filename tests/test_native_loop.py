@@ -59,7 +59,7 @@ def _solve(raw: dict, host: bool):
     return res, rows
 
 
-@pytest.mark.parametrize("variant", [("cg", None), ("ipip", "points")])
+@pytest.mark.parametrize("variant", [("cg", None), ("ipip", "points"), ("ipip", "zones")])
 def test_compiled_loop_makes_the_host_loops_steps(variant):
     """Through the first impact (0.75 s) of the bundled drop: identical step sequences,
     rejections by kind, states and energy accounts."""

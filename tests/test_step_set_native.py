@@ -272,6 +272,30 @@ def test_step_set(name, cp, ne, x):
             assert 0 < p.shape[0] < n  # the step's culling kept some blocks, not all
 
 
+@pytest.mark.parametrize(("name", "cp", "ne", "x"),
+                         [c for c in CASES if c.values[0].startswith("ipip")])
+def test_zone_weights_are_the_host_rule(name, cp, ne, x):
+    """IPIP "zones" (the paper's rule: the middle of each plateau of local minima) chosen
+    in compiled code: the same weights bit for bit as the host rule
+    (select.closest_pair_weights) from the same gaps, at several activation gaps; the
+    parallel beams give plateaus (a middle pair, or two with 1/2 each)."""
+    from beamcontact.contact.select import closest_pair_weights
+
+    pairs = ssn.candidate_pairs(x, ne, cp.reach + MOTION)
+    q = ssn.block_gaps(x, ne, pairs)
+    local = np.asarray(cp.local_element, dtype=np.int64)
+    chosen = 0.0
+    for q_active in (0.0, 2.0 * MOTION, 0.1):
+        host = closest_pair_weights(q, pairs, cp.beam_of, local, q_active, pairing="zones")
+        native = ssn.zone_weights(q, pairs, ne.beam, local, q_active)
+        np.testing.assert_array_equal(native, host)
+        chosen += native.sum()
+    if "2.0" not in name:
+        assert chosen > 0  # some zone was chosen
+    if "parallel-0.525" in name and "0.13" not in name:
+        assert 0.5 in native  # a plateau of an even number of cells
+
+
 @pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES)
 def test_approach_ratios(name, cp, ne, x):
     """Conservative advancement over the frozen set: the predictor's (h v, h^2 a / 2) and

@@ -529,6 +529,113 @@ def point_weights(q, pairs, ne, q_active, rtol=RTOL):
     return W
 
 
+# ------------------------------------------------------------------------- IPIP "zones"
+
+
+@njit
+def zone_weights(q, pairs, beam, local, q_active, rtol=RTOL):
+    """The "zones" weights W (P, n_s, n_s) of the blocks ``pairs`` (real pairs only) from
+    their gaps q (:func:`select.closest_pair_weights` with pairing "zones", the same
+    arithmetic and so the same weights): per pair of beams, the grid of the candidate
+    blocks' gaps (``local`` the index of each element within its beam), its local minima
+    below q_active (no 8-neighbour closer by more than rtol max(1, |q|)), the plateaus of
+    touching minima (8-connected) and the middle cell of each in lexicographic (i, j)
+    order, or the two middle ones with 1/2 each."""
+    C, ns = q.shape[0], q.shape[1]
+    W = np.zeros_like(q)
+    done = np.zeros(C, dtype=np.bool_)
+    members = np.empty(C, dtype=np.int64)
+    for first in range(C):
+        if done[first]:
+            continue
+        b1, b2 = beam[pairs[first, 0]], beam[pairs[first, 1]]
+        m = 0
+        i_min = j_min = 1 << 62
+        for c in range(first, C):
+            if not done[c] and beam[pairs[c, 0]] == b1 and beam[pairs[c, 1]] == b2:
+                done[c] = True
+                members[m] = c
+                m += 1
+                i_min = min(i_min, local[pairs[c, 0]] * ns)
+                j_min = min(j_min, local[pairs[c, 1]] * ns)
+        n1 = n2 = 0
+        for k in range(m):
+            c = members[k]
+            n1 = max(n1, local[pairs[c, 0]] * ns - i_min + ns)
+            n2 = max(n2, local[pairs[c, 1]] * ns - j_min + ns)
+        grid = np.full((n1, n2), np.inf)
+        for k in range(m):
+            c = members[k]
+            i0, j0 = local[pairs[c, 0]] * ns - i_min, local[pairs[c, 1]] * ns - j_min
+            grid[i0:i0 + ns, j0:j0 + ns] = q[c]
+        weights = _plateau_middles(grid, q_active, rtol)
+        for k in range(m):
+            c = members[k]
+            i0, j0 = local[pairs[c, 0]] * ns - i_min, local[pairs[c, 1]] * ns - j_min
+            W[c] = weights[i0:i0 + ns, j0:j0 + ns]
+    return W
+
+
+@njit
+def _plateau_middles(grid, q_active, rtol):
+    """:func:`select._zone_weights` on one grid: the middle of every plateau of local
+    minima."""
+    n1, n2 = grid.shape
+    is_min = np.zeros((n1, n2), dtype=np.bool_)
+    for i in range(n1):
+        for j in range(n2):
+            v = grid[i, j]
+            if not (np.isfinite(v) and v < q_active):
+                continue
+            tol = rtol * max(1.0, abs(v))
+            ok = True
+            for di in range(-1, 2):
+                for dj in range(-1, 2):
+                    a, b = i + di, j + dj
+                    if (di or dj) and 0 <= a < n1 and 0 <= b < n2 and not v <= grid[a, b] + tol:
+                        ok = False
+            is_min[i, j] = ok
+    # the plateaus: 8-connected components, labelled by a flood fill
+    labels = np.zeros((n1, n2), dtype=np.int64)
+    size = np.zeros(n1 * n2 + 1, dtype=np.int64)
+    stack = np.empty((n1 * n2, 2), dtype=np.int64)
+    n_labels = 0
+    for i in range(n1):
+        for j in range(n2):
+            if not is_min[i, j] or labels[i, j]:
+                continue
+            n_labels += 1
+            labels[i, j] = n_labels
+            stack[0, 0], stack[0, 1] = i, j
+            top = 1
+            while top:
+                top -= 1
+                a0, b0 = stack[top, 0], stack[top, 1]
+                size[n_labels] += 1
+                for di in range(-1, 2):
+                    for dj in range(-1, 2):
+                        a, b = a0 + di, b0 + dj
+                        if 0 <= a < n1 and 0 <= b < n2 and is_min[a, b] and not labels[a, b]:
+                            labels[a, b] = n_labels
+                            stack[top, 0], stack[top, 1] = a, b
+                            top += 1
+    # the middle cell(s) of each plateau in row-major (lexicographic) order
+    weights = np.zeros((n1, n2))
+    seen = np.zeros(n_labels + 1, dtype=np.int64)
+    for i in range(n1):
+        for j in range(n2):
+            lab = labels[i, j]
+            if lab == 0:
+                continue
+            k, r = size[lab], seen[lab]
+            if k % 2 == 1 and r == k // 2:
+                weights[i, j] += 1.0
+            elif k % 2 == 0 and (r == k // 2 - 1 or r == k // 2):
+                weights[i, j] += 0.5
+            seen[lab] = r + 1
+    return weights
+
+
 @njit
 def weighted_first(pairs, W):
     """The blocks with a nonzero weight first, each group in its original order (the
@@ -796,16 +903,19 @@ class NativeLaw(NamedTuple):
 
     Attributes:
         code: blocks_native.LAW_CG or LAW_PENALTY.
-        points: IPIP with pairing "points" (the closest-point weights); False for an
-            integrated law (the arc-length weights). IPIP "zones" is chosen on the host.
+        points, zones: IPIP with pairing "points" (the closest-point weights) or "zones"
+            (the middle of each plateau of local minima); neither: an integrated law
+            (the arc-length weights).
         reach, interaction, slack: the broad phase's reach, the distance within which
             a block interacts (inf: every candidate) and the law's advancement slack.
         m, q_reg, cutoff: the coarse-grained parameters (0 for the penalty).
         amplitude, r12: (E, E) the law's amplitude and R1 + R2 of every element pair.
+        local: (E,) int64 the index of each element within its beam (the zones' grid).
     """
 
     code: int
     points: bool
+    zones: bool
     reach: float
     interaction: float
     slack: float
@@ -814,6 +924,7 @@ class NativeLaw(NamedTuple):
     cutoff: float
     amplitude: np.ndarray
     r12: np.ndarray
+    local: np.ndarray
 
 
 @njit
@@ -832,13 +943,19 @@ def frozen_blocks(ne, law, pairs, W):
 @njit
 def frozen_set_at(x, motion, ne, law):
     """The blocks and weights to freeze at configuration x for a motion of at most
-    ``motion`` (IPIP "points" or an integrated law; the twin of
-    :func:`step_set.step_set`, and of :meth:`problem.ContactProblem.frozen_set` in
-    statics): (pairs, W, number of box candidates)."""
-    if law.points:
+    ``motion`` (the twin of :func:`step_set.step_set`, and of
+    :meth:`problem.ContactProblem.frozen_set` in statics): (pairs, W, number of box
+    candidates). IPIP: the candidate blocks and the weights of the law's pairing at the
+    activation gap 2 motion, the blocks with a weight first; an integrated law: the
+    blocks within its interaction distance, the arc-length weights."""
+    if law.points or law.zones:
         pairs = candidate_pairs(x, ne, law.reach + motion)
         count = pairs.shape[0]
-        W = point_weights(block_gaps(x, ne, pairs), pairs, ne, 2.0 * motion)
+        q = block_gaps(x, ne, pairs)
+        if law.points:
+            W = point_weights(q, pairs, ne, 2.0 * motion)
+        else:
+            W = zone_weights(q, pairs, ne.beam, law.local, 2.0 * motion)
         pairs, W = weighted_first(pairs, W)
         return pairs, W, count
     pairs, count = near_candidates(x, ne, law.reach, law.interaction, motion)

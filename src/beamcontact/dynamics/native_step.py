@@ -31,7 +31,7 @@ from beamcontact.assembly.model import LoadState
 from beamcontact.contact import blocks_native
 from beamcontact.contact import step_set_native as ssn
 from beamcontact.contact.laws import coarse_grained_native as cgn
-from beamcontact.dynamics.control import ADVANCE_FRACTION, T
+from beamcontact.dynamics.control import T
 from beamcontact.dynamics.hht import DIVERGE_AFTER, DynState
 from beamcontact.dynamics.report import (
     C_COUNT,
@@ -355,11 +355,12 @@ def native_law(contact, ne: ssn.NativeContactElements) -> ssn.NativeLaw:
         params = (float(law.exponent), float(law.q_reg), float(law.cutoff))
         b12 = np.repeat(ne.beta, E) * np.tile(ne.beta, E)
         amplitude = (float(law.k) * b12) * cgn.cg_constants(params[0], r1, r2)
-    return ssn.NativeLaw(code, bool(law.closest_pairs and law.pairing == "points"),
-                         float(contact.reach), float(law.interaction_distance()),
-                         float(law.advance_slack()), *params,
-                         np.ascontiguousarray(amplitude.reshape(E, E)),
-                         np.ascontiguousarray((r1 + r2).reshape(E, E)))
+    pairing = law.pairing if law.closest_pairs else None
+    return ssn.NativeLaw(code, pairing == "points", pairing == "zones", float(contact.reach),
+                         float(law.interaction_distance()), float(law.advance_slack()),
+                         *params, np.ascontiguousarray(amplitude.reshape(E, E)),
+                         np.ascontiguousarray((r1 + r2).reshape(E, E)),
+                         np.ascontiguousarray(contact.local_element, dtype=np.int64))
 
 
 class NativeContact:
@@ -367,28 +368,18 @@ class NativeContact:
     :mod:`~beamcontact.contact.step_set` (all-pairs broad phase; no self-contact, no
     obstacles): chosen at the predictor, the step shortened by the conservative
     advancement, the checks after the step, each compiled
-    (:func:`~beamcontact.contact.step_set_native.step_set_at`, ``after_step``). IPIP
-    "zones" are chosen on the host by the rule the JAX engine uses
-    (:meth:`~beamcontact.contact.problem.ContactProblem.closest_pair_set`)."""
+    (:func:`~beamcontact.contact.step_set_native.step_set_at`, ``after_step``)."""
 
     def __init__(self, contact):
         self.problem = contact
         self.ne = ssn.native_contact_elements(contact.elements)
         self.law = native_law(contact, self.ne)
-        self.zones = contact.law.closest_pairs and contact.law.pairing == "zones"
 
     def frozen_at(self, x, motion: float = 0.0) -> tuple:
         """The frozen set at configuration x for a motion of at most ``motion`` (0: the
         start of a run; the search margin of a load step)."""
-        ne, law = self.ne, self.law
-        if self.zones:
-            pairs = ssn.candidate_pairs(x, ne, law.reach + motion)
-            cs = self.problem.closest_pair_set(pairs, ssn.block_gaps(x, ne, pairs), motion)
-            pairs, W = cs.pairs, cs.W
-        else:
-            pairs, W = ssn.frozen_set_at(x, motion, ne, law)[:2]
-        return ssn.frozen_blocks(ne, law, np.ascontiguousarray(pairs, dtype=np.int64),
-                                 np.ascontiguousarray(W, dtype=np.float64))
+        pairs, W, _ = ssn.frozen_set_at(x, motion, self.ne, self.law)
+        return ssn.frozen_blocks(self.ne, self.law, pairs, W)
 
     def missed(self, x: np.ndarray, frozen: tuple) -> tuple[bool, float]:
         """After a load step at x: (did the search at x find an interacting block the
@@ -402,20 +393,9 @@ class NativeContact:
         ne, law = self.ne, self.law
         v2, a2 = s.v.reshape(-1, 2), s.a.reshape(-1, 2)
         motion, x0, x_pred = _predictor(x_ref, s.u, s.v, s.a, h, motion_factor)
-        if not self.zones:
-            pairs, W, count, h_used = ssn.step_set_at(x0, x_pred, v2, a2, h, motion, ne, law)
-            return _Chosen(ssn.frozen_blocks(ne, law, pairs, W), h_used, x0, x_pred, motion,
-                           int(count))
-        candidates = ssn.candidate_pairs(x_pred, ne, law.reach + motion)
-        cs = self.problem.closest_pair_set(candidates, ssn.block_gaps(x_pred, ne, candidates),
-                                           motion)
-        pairs = np.ascontiguousarray(cs.pairs, dtype=np.int64)
-        ratio = ssn.predictor_approach_ratio(x0, v2, a2, h, ne, pairs, law.slack,
-                                             ADVANCE_FRACTION)
-        h_used = h * min(1.0, ADVANCE_FRACTION / max(ratio, 1e-300))
-        return _Chosen(ssn.frozen_blocks(ne, law, pairs, np.ascontiguousarray(cs.W,
-                                                                           dtype=np.float64)),
-                       h_used, x0, x_pred, motion, int(candidates.shape[0]))
+        pairs, W, count, h_used = ssn.step_set_at(x0, x_pred, v2, a2, h, motion, ne, law)
+        return _Chosen(ssn.frozen_blocks(ne, law, pairs, W), h_used, x0, x_pred, motion,
+                       int(count))
 
     def min_gap(self, x: np.ndarray, frozen: tuple) -> float:
         """The smallest surface gap at x (the post-step check's)."""
@@ -454,8 +434,8 @@ def _no_contact_elements() -> tuple[ssn.NativeContactElements, ssn.NativeLaw]:
     ne = ssn.NativeContactElements(i2, np.zeros((0, 1), np.bool_), np.zeros((0, 1, 1)), f2,
                                    f2.copy(), np.zeros(0), np.zeros(0),
                                    np.zeros(0, np.int64), np.zeros((1, 1), np.bool_), 0.0, 1)
-    law = ssn.NativeLaw(blocks_native.LAW_CG, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                        np.zeros((0, 0)), np.zeros((0, 0)))
+    law = ssn.NativeLaw(blocks_native.LAW_CG, False, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                        np.zeros((0, 0)), np.zeros((0, 0)), np.zeros(0, np.int64))
     return ne, law
 
 
@@ -468,16 +448,12 @@ class NativeEngine:
     """The native engine of the time loop (docs/architecture.md, "Engines"): the same
     interface as :class:`~beamcontact.dynamics.step.JaxEngine`; its states are
     :class:`~beamcontact.dynamics.hht.DynState` of NumPy arrays. It runs the time loop
-    itself (:meth:`advance`, the compiled loop of dynamics/native_loop.py), but for IPIP
-    "zones", whose set is chosen on the host: then the driver's host loop calls
-    :meth:`attempt`."""
+    itself (:meth:`advance`, the compiled loop of dynamics/native_loop.py); :meth:`attempt`
+    makes one attempt for the driver's host loop (the compiled loop's reference in the
+    tests)."""
 
     name = "native"
-
-    @property
-    def runs_loop(self) -> bool:
-        """Whether :meth:`advance` runs this model's loop (not for IPIP "zones")."""
-        return self._contact is None or not self._contact.zones
+    runs_loop = True
 
     def __init__(self, model, alpha: float, options: NewtonOptions, length: float,
                  dt_ref: float, contact=None):
