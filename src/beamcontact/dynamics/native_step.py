@@ -9,9 +9,11 @@ alpha f_pot(u_n) with its tangent assembled from the element blocks of
 (:mod:`~beamcontact.solvers.bordered_native`), the same convergence and divergence tests
 as :func:`~beamcontact.solvers.newton.newton`; the corrector (eqs. 33-35); the load state;
 the local error estimate (Zienkiewicz & Xie 1991), the energy floor and the diagnostics,
-reported in the order of :mod:`~beamcontact.dynamics.report`. The step controller, the
-energy account and the rejection rules are the driver's (dynamics/driver.py), shared with
-the JAX engine.
+reported in the order of :mod:`~beamcontact.dynamics.report`. The engine runs it inside
+its compiled time loop (:meth:`NativeEngine.advance`, dynamics/native_loop.py), with the
+step controller, energy account and rejection rules that the JAX engine's host loop
+calls too (dynamics/control.py); :meth:`NativeEngine.attempt` makes one attempt for the
+host loop.
 
 Contact enters as the frozen set of the step (:class:`NativeContact`, the twin of
 contact/step_set.py): its blocks are added to the residual and the tangent at every
