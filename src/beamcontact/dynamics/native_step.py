@@ -134,14 +134,9 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
     if contact[2].shape[0] > 0:
         e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha,
                                    position, band, B, C, D, kl, ku, r_pot, r)
-    for i in range(r.shape[0]):
-        r_layout[position[i]] = r[i]
-    bordered.apply_supports(band, B, C, D, kl, ku, free_layout, r_layout)
-    norm = 0.0
-    for i in range(r.shape[0]):
-        r[i] = r_layout[position[i]]
-        norm += r[i] * r[i]
-    return np.sqrt(norm), e_contact
+    norm = bordered.supported_residual(band, B, C, D, kl, ku, free_layout, position, r,
+                                       r_layout)
+    return norm, e_contact
 
 
 @njit
@@ -182,15 +177,8 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     done, failed = norm0 <= atol, not np.isfinite(norm0)
     k, rn = 0, norm0
     while not done and not failed and k < max_iterations:
-        for i in range(n):
-            r_layout[i] = -r_layout[i]
-        bordered.factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, du)
-        step, finite = 0.0, True
-        for i in range(n):
-            d = du[position[i]]
-            u[i] += d
-            step = max(step, abs(d))
-            finite = finite and np.isfinite(d)
+        step, finite = bordered.newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position,
+                                              r_layout, du, u)
         # the last evaluation is at the solution: its contact energy is the step's
         rn, e_contact = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
                                           f_pot_n, theta_n, t_n, *args)

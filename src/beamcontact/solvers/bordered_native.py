@@ -541,3 +541,36 @@ def factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x):
         return info
     solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x)
     return 0
+
+
+@njit
+def newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position, r_layout, du, u):
+    """One Newton update on the assembled bordered system: K du = -r (r in layout order,
+    negated in place; K factorised in place), then u[i] += du[position[i]] for u in the
+    global numbering. Returns (max |du|, whether every du is finite); a zero pivot gives a
+    NaN du (:func:`factor_solve`)."""
+    for i in range(r_layout.shape[0]):
+        r_layout[i] = -r_layout[i]
+    factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, du)
+    step, finite = 0.0, True
+    for i in range(u.shape[0]):
+        d = du[position[i]]
+        u[i] += d
+        step = max(step, abs(d))
+        finite = finite and np.isfinite(d)
+    return step, finite
+
+
+@njit
+def supported_residual(band, B, C, D, kl, ku, free_layout, position, r, r_layout):
+    """The supports applied to the assembled system (:func:`apply_supports`): the residual
+    r (global numbering) copied into layout order (r_layout), both modified, r written
+    back; returns ||r||."""
+    for i in range(r.shape[0]):
+        r_layout[position[i]] = r[i]
+    apply_supports(band, B, C, D, kl, ku, free_layout, r_layout)
+    norm = 0.0
+    for i in range(r.shape[0]):
+        r[i] = r_layout[position[i]]
+        norm += r[i] * r[i]
+    return np.sqrt(norm)

@@ -43,14 +43,8 @@ def _residual_tangent(nm, contact, u, lam, theta_n, t_n, position, positions, fr
     if contact[2].shape[0] > 0:
         contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0, position, band, B, C, D,
                        kl, ku, np.zeros(r.shape[0]), r)
-    for i in range(r.shape[0]):
-        r_layout[position[i]] = r[i]
-    bordered.apply_supports(band, B, C, D, kl, ku, free_layout, r_layout)
-    norm = 0.0
-    for i in range(r.shape[0]):
-        r[i] = r_layout[position[i]]
-        norm += r[i] * r[i]
-    return np.sqrt(norm)
+    return bordered.supported_residual(band, B, C, D, kl, ku, free_layout, position, r,
+                                       r_layout)
 
 
 @njit
@@ -70,15 +64,8 @@ def load_step(nm, contact, position, positions, free_layout, band, B, C, D, ipiv
     done, failed = norm0 <= 0.0, not np.isfinite(norm0)
     k, rn = 0, norm0
     while not done and not failed and k < max_iterations:
-        for i in range(n):
-            r_layout[i] = -r_layout[i]
-        bordered.factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, du)
-        step, finite = 0.0, True
-        for i in range(n):
-            d = du[position[i]]
-            u[i] += d
-            step = max(step, abs(d))
-            finite = finite and np.isfinite(d)
+        step, finite = bordered.newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position,
+                                              r_layout, du, u)
         rn = _residual_tangent(nm, contact, u, lam, theta_n, t_n, *args)
         failed = not np.isfinite(rn) or not finite
         done = (rn <= rtol * norm0 or step <= utol_abs) and not failed
