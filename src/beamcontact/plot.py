@@ -84,13 +84,19 @@ def plot_shapes(shapes: list[tuple[str, list[np.ndarray]]], reference: list[np.n
 
 def _finish(fig: Figure, ax, path: Path | None, xlabel: str, ylabel: str,
             title: str) -> Figure:
-    """Labels, grid and legend; save."""
+    """Labels, grid and legend; save.
+
+    The legend sits outside the axes, right of them: it never hides a curve, and
+    matplotlib's search for the "best" place inside tests every point of every curve
+    against candidate boxes (0.2 s for the energies of a 12 000-step history, a third of
+    that figure's cost).
+    """
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.grid(alpha=0.3)
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     return _save(fig, path)
 
@@ -125,14 +131,19 @@ def plot_energies(history: dict[str, np.ndarray], path: Path | None = None,
 def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[float],
                    path: Path | None = None, title: str = "", obstacles=()) -> Figure:
     """A grid of snapshots of all beams' axes (paper Fig. 6); ``radii`` pad the view;
-    the obstacles in grey."""
+    the obstacles in grey.
+
+    Every panel shows the same view, so the panels share their axes: tick labels on the
+    outer panels only, and four ticks a side. matplotlib's cost here is its tick labels
+    (made, measured for the layout, drawn): these halve the figure's time (0.57 -> 0.30 s).
+    """
     n = len(frames)
     cols = min(n, 3)
     rows = int(np.ceil(n / cols))
     lo, hi = _view([p for _, beams in frames for p in beams], obstacles)
     pad = 0.05 * max(hi - lo) + max(radii)
     fig = Figure(figsize=(4 * cols, 2.6 * rows))
-    axes = fig.subplots(rows, cols, squeeze=False)
+    axes = fig.subplots(rows, cols, squeeze=False, sharex=True, sharey=True)
     for ax, (t, beams) in zip(axes.ravel(), frames, strict=False):
         for k, pts in enumerate(beams):
             ax.plot(pts[:, 0], pts[:, 1], lw=2.5, solid_capstyle="round",
@@ -143,6 +154,11 @@ def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[flo
         ax.set_aspect("equal")
         ax.set_title(f"t = {t:.3f} s", fontsize=9)
         ax.tick_params(labelsize=7)
+        ax.locator_params(nbins=4)
+    for k, ax in enumerate(axes.ravel()[:n]):
+        ax.label_outer()
+        if k + cols >= n:  # the lowest panel of its column: its x labels show
+            ax.tick_params(labelbottom=True)
     for ax in axes.ravel()[n:]:
         ax.axis("off")
     fig.suptitle(title, fontsize=10)
@@ -160,6 +176,8 @@ def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str
     100 frames of a default run); this costs a few ms. The background is reduced to a
     palette once, with the beam colours and black for the label added to it, and the
     frames are drawn in palette indices: quantising every frame cost 70 % of the time.
+    The frames are written as they are (``optimize=False``): Pillow's search for a smaller
+    palette and its remapping of each frame halved the time for a 25 % smaller file.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image, ImageDraw, ImageFont
@@ -205,7 +223,7 @@ def animate(frames: list[tuple[float, list[np.ndarray]]], path: Path, title: str
         draw.text(label_at, f"t = {t:.3f} s", fill=index[-1], font=font)
         images.append(image)
     images[0].save(path, save_all=True, append_images=images[1:],
-                   duration=round(1000 / fps), loop=0)
+                   duration=round(1000 / fps), loop=0, optimize=False)
 
 
 def plot_overlay(curves: list[tuple[str, np.ndarray, np.ndarray]], path: Path | None,
