@@ -17,13 +17,14 @@ import numpy as np
 import pytest
 from _builders import beam
 
+from beamcontact._jax import gpu_plugin_installed
 from beamcontact.api import load_case
 from beamcontact.assembly.inertia import inertia_force_and_mass
 from beamcontact.dynamics.driver import solve_dynamic
 from beamcontact.io.case import parse_case
 from beamcontact.io.results import read_history
 from beamcontact.runner import run_case
-from beamcontact.setup.start import _gpu_installed, choose_engine, dynamic_start, prepare
+from beamcontact.setup.start import choose_engine, dynamic_start, prepare
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -147,7 +148,7 @@ def test_native_engine_follows_the_jax_engine(make):
 def test_auto_chooses_native_where_every_term_has_a_kernel():
     """On a CPU, ``auto`` runs natively every case with a native kernel for all its terms;
     with a GPU plugin of JAX installed, the JAX engine runs everything (and says why)."""
-    gpu = _gpu_installed()
+    gpu = gpu_plugin_installed()
     for case in ("pinned_beam_vibration/case.toml", "free_fall/case_cg.toml",
                  "cantilever_end_moment/case.toml"):
         name, why = choose_engine(load_case(REPO / "examples" / case))

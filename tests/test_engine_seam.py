@@ -7,8 +7,10 @@ integrates exactly): the loop must reach t_end in steps of dt, the state must fo
 closed form, and the energy account must close.
 """
 
+import ast
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,6 +26,57 @@ def test_time_loop_and_controller_import_no_jax():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"
+
+
+# a native run through the runner, as the command line makes it, up to its plots: the
+# bundled drops (both laws, both IPIP pairings) shortened, and the cantilever statics
+_NATIVE_RUN = """
+import sys, tomllib
+from pathlib import Path
+import beamcontact
+from beamcontact.io.case import parse_case
+from beamcontact.record import RunRecord
+from beamcontact.runner import run_case
+
+RunRecord.plots = lambda self: print("before plots:", sorted(
+    m for m in ("jax", "matplotlib") if m in sys.modules))
+beamcontact.enable_x64()
+for path, changes in [("examples/free_fall/case_cg.toml", {"t_end": 0.76}),
+                      ("examples/free_fall/case_ipip.toml", {"t_end": 0.76}),
+                      ("examples/cantilever_end_moment/case.toml", {})]:
+    data = tomllib.loads(Path(path).read_text())
+    data["analysis"].update(changes)
+    summary = run_case(parse_case(data), "", Path(sys.argv[1]) / Path(path).stem)
+    print(summary["solver"]["engine_used"], summary["status"])
+"""
+
+
+def test_a_native_run_imports_no_jax(tmp_path):
+    """The native engine's runs (dynamics with either law, statics) import neither JAX
+    nor matplotlib before they draw (beamcontact/_jax.py): 0.45 s and 0.4 s of every
+    run."""
+    repo = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "-c", _NATIVE_RUN, str(tmp_path)],
+                         capture_output=True, text=True, check=True, cwd=repo)
+    lines = out.stdout.split("\n")
+    assert lines.count("before plots: []") == 3, out.stdout
+    assert lines.count("native completed") == 3, out.stdout
+
+
+def test_only_one_module_imports_jax():
+    """Every module of the package takes JAX from beamcontact/_jax.py, so that its
+    pytrees are registered whenever JAX is used and nothing imports JAX early."""
+    package = Path(__file__).resolve().parents[1] / "src" / "beamcontact"
+    offenders = []
+    for path in sorted(package.rglob("*.py")):
+        if path.name == "_jax.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            if any(n == "jax" or n.startswith("jax.") for n in names):
+                offenders.append(f"{path.relative_to(package)}:{node.lineno}")
+    assert offenders == []
 
 
 class FallingMass:

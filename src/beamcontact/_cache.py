@@ -25,10 +25,22 @@ def cache_dir() -> Path | None:
     return Path(base) / "beamcontact" / "jax"
 
 
+def jax_cache_dir() -> str | None:
+    """The persistent compilation cache JAX uses or will use when imported (None: none),
+    read without importing JAX."""
+    from beamcontact._jax import imported, jax
+
+    if imported():
+        return jax.config.jax_compilation_cache_dir or None
+    return os.environ.get("JAX_COMPILATION_CACHE_DIR") or None
+
+
 def enable_compilation_cache() -> Path | None:
     """Point JAX at the cache folder (created if needed); returns it, or None when the
-    cache is off or the folder cannot be created (then JAX simply compiles every time)."""
-    import jax
+    cache is off or the folder cannot be created (then JAX simply compiles every time).
+    JAX is not imported here: before it is, the settings go into the environment
+    variables that JAX reads when imported (a native run never imports it)."""
+    from beamcontact._jax import imported, jax
 
     path = cache_dir()
     if path is None:
@@ -37,6 +49,10 @@ def enable_compilation_cache() -> Path | None:
         path.mkdir(parents=True, exist_ok=True)
     except OSError:
         return None
-    jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    if imported():
+        jax.config.update("jax_compilation_cache_dir", str(path))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    else:
+        os.environ["JAX_COMPILATION_CACHE_DIR"] = str(path)
+        os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0"
     return path

@@ -17,13 +17,15 @@ simply jitted as usual. With the cache off (``BEAMCONTACT_CACHE_DIR=""``) or bef
 command line has switched it on, this is plain ``jax.jit``.
 """
 
+from __future__ import annotations
+
 import functools
 import hashlib
 import os
 import pickle
 from pathlib import Path
 
-import jax
+from beamcontact._jax import jax
 
 
 @functools.cache
@@ -55,8 +57,13 @@ class _Persistent:
     def __init__(self, fn, static_argnames: tuple[str, ...]):
         self.fn = fn
         self.static_argnames = static_argnames
-        self.jitted = jax.jit(self._trace, static_argnames=static_argnames)
         functools.update_wrapper(self, fn)
+
+    @functools.cached_property
+    def jitted(self):
+        """The ``jax.jit`` of the tracing function, made at the first call (a module that
+        declares a persistent function imports no JAX: beamcontact/_jax.py)."""
+        return jax.jit(self._trace, static_argnames=self.static_argnames)
 
     def __call__(self, *args, **kwargs):
         return self.jitted(*args, **kwargs)

@@ -1,22 +1,36 @@
 """Float64: the switch (set by entry points: CLI, simulate, examples, tests), its check, and
 the conversion of host values to float64 arrays.
 
-JAX is imported lazily so that validating a case (``beamcontact check``) stays fast.
+JAX is not imported here: a run on the native engine never imports it (beamcontact/_jax.py).
+Before JAX is imported the switch is the environment variable ``JAX_ENABLE_X64``, which
+JAX reads when it is imported (also in the processes a run starts); after, its config.
 """
+
+import os
+
+# the values JAX's boolean environment variables read as true
+_TRUE = ("y", "yes", "t", "true", "on", "1")
 
 
 def enable_x64() -> None:
     """Make JAX compute in float64. Call before any JAX array is created."""
-    import jax
+    from beamcontact._jax import imported, jax
 
-    jax.config.update("jax_enable_x64", True)
+    if imported():
+        jax.config.update("jax_enable_x64", True)
+    else:
+        os.environ["JAX_ENABLE_X64"] = "1"
 
 
 def require_x64() -> None:
     """Raise a clear error when JAX would silently compute in float32."""
-    import jax
+    from beamcontact._jax import imported, jax
 
-    if not jax.config.read("jax_enable_x64"):
+    if imported():
+        on = bool(jax.config.read("jax_enable_x64"))
+    else:
+        on = os.environ.get("JAX_ENABLE_X64", "").lower() in _TRUE
+    if not on:
         raise RuntimeError(
             "beamcontact needs float64: set JAX_ENABLE_X64=1 or call "
             "beamcontact.enable_x64() before creating arrays"
@@ -24,8 +38,8 @@ def require_x64() -> None:
 
 
 def as_float(x):
-    """Host value -> float64 JAX array (never a silent float32)."""
-    import jax.numpy as jnp
+    """Host value -> float64 NumPy array (never a silent float32); JAX takes it as it is
+    and the JAX engine moves the model to its device once."""
     import numpy as np
 
-    return jnp.asarray(np.asarray(x, dtype=np.float64))
+    return np.asarray(x, dtype=np.float64)

@@ -148,15 +148,13 @@ def simulate(case: Case | str | Path, out: str | Path | None = None, *,
     Ctrl-C stops the run and returns what was computed, with ``status ==
     "interrupted"``. Invalid input raises :class:`~beamcontact.io.case.CaseError`.
     """
-    import jax
-
     from beamcontact import enable_x64
-    from beamcontact._cache import enable_compilation_cache
+    from beamcontact._cache import enable_compilation_cache, jax_cache_dir
     from beamcontact.progress import progress_bar
     from beamcontact.runner import execute
 
     enable_x64()
-    if not jax.config.jax_compilation_cache_dir:
+    if not jax_cache_dir():
         enable_compilation_cache()
     if isinstance(case, Case):
         text = case.to_toml()

@@ -8,12 +8,13 @@ summary says why the run stopped, with every counter known at that point. Dynami
 can be continued with ``restart=True`` from the last state in results.h5.
 """
 
+from __future__ import annotations
+
 import time
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import jax.numpy as jnp
 import numpy as np
 
 from beamcontact import __version__, require_x64
@@ -225,10 +226,9 @@ def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, d
     if "energy_account" not in last:
         raise CaseError(f"--restart: {path} was written by an older beamcontact without the "
                         f"energy account; run the case again without --restart")
-    state = DynState(jnp.asarray(last["parameter"]), jnp.asarray(last["u"]),
-                     jnp.asarray(last["v"]), jnp.asarray(last["a"]), jnp.asarray(last["f_pot"]),
-                     LoadState(jnp.asarray(last["load_theta"]),
-                               jnp.asarray(last["load_tangent"])))
+    state = DynState(*(np.asarray(last[k]) for k in ("parameter", "u", "v", "a", "f_pot")),
+                     LoadState(np.asarray(last["load_theta"]),
+                               np.asarray(last["load_tangent"])))
     return state, last
 
 

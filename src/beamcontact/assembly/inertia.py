@@ -9,9 +9,9 @@ step, per element for the mass matrix), which gives
 dF/dx + gamma/(beta dt) dF/dv + 1/(beta dt^2) dF/da in one go.
 """
 
-import jax
-import jax.numpy as jnp
+from __future__ import annotations
 
+from beamcontact._jax import jax, jnp
 from beamcontact.assembly.model import Model, element_dofs
 from beamcontact.beam.inertia import (
     element_inertia_force,

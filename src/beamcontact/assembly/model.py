@@ -4,22 +4,19 @@ This is the only place that knows the global numbering: control point c of the w
 model owns dofs 2c (x) and 2c+1 (y); beam b's points follow those of beams 0..b-1.
 """
 
-from dataclasses import dataclass
+from __future__ import annotations
 
-import jax
-import jax.numpy as jnp
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from beamcontact._jax import jax, jnp, pytree
 
 
-def _pytree(cls=None, *, meta=()):
-    """Frozen dataclass registered as a pytree; fields named in ``meta`` are static."""
-
-    def wrap(c):
-        c = dataclass(frozen=True, eq=False)(c)
-        names = [f.name for f in c.__dataclass_fields__.values()]
-        data = [n for n in names if n not in meta]
-        return jax.tree_util.register_dataclass(c, data_fields=data, meta_fields=list(meta))
-
-    return wrap if cls is None else wrap(cls)
+def _pytree(cls):
+    """Frozen dataclass (compared by identity) registered as a pytree
+    (:func:`beamcontact._jax.pytree`)."""
+    return pytree(dataclass(frozen=True, eq=False)(cls))
 
 
 @_pytree
@@ -70,7 +67,7 @@ class LoadState:
     tangent: jax.Array
 
 
-@_pytree(meta=("sparse",))
+@_pytree
 class Model:
     """Everything the kernels need; varying numbers are array data (one compile per shape).
 
@@ -89,7 +86,7 @@ class Model:
     x_ref: jax.Array
     free: jax.Array
     gravity: jax.Array
-    sparse: bool = False
+    sparse: bool = field(default=False, metadata=dict(static=True))
 
     @property
     def n_dof(self) -> int:
@@ -103,8 +100,10 @@ def element_dofs(conn: jax.Array) -> jax.Array:
 
 
 def initial_load_state(model: Model) -> LoadState:
-    """Zero rotation and the reference tangent at every load point."""
-    t = jnp.einsum("lk,lkd->ld", model.loads.dR, model.x_ref[model.loads.conn])
-    return LoadState(theta=jnp.zeros(t.shape[0]), tangent=t)
+    """Zero rotation and the reference tangent at every load point (host arrays)."""
+    loads = model.loads
+    t = np.einsum("lk,lkd->ld", np.asarray(loads.dR), np.asarray(model.x_ref)[
+        np.asarray(loads.conn)])
+    return LoadState(theta=np.zeros(t.shape[0]), tangent=t)
 
 

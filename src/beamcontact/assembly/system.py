@@ -10,9 +10,9 @@ Static total potential (load factor lam scales all external actions):
     Pi(u) = sum_e Pi_int,e + lam (sum_e Pi_grav,e + sum_l Pi_load,l).
 """
 
-import jax
-import jax.numpy as jnp
+from __future__ import annotations
 
+from beamcontact._jax import jax, jnp
 from beamcontact.assembly.model import ElementBlock, LoadState, Model, element_dofs
 from beamcontact.beam.energy import (
     element_gravity_potential,

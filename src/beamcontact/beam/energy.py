@@ -1,3 +1,7 @@
+from __future__ import annotations
+
+from beamcontact._jax import jnp
+
 """Local energies of the planar rotation-free Bernoulli-Euler beam (paper Sec. 3).
 
 Pure JAX functions of one element's control points; forces and tangents come from
@@ -22,7 +26,6 @@ energy density is (1/2) E (eps_bar / g_bar)^2 per reference volume
 dV = g0 sqrt(g) d xi dA.
 """
 
-import jax.numpy as jnp
 
 
 def axis_metric(x_e, dR, ddR):

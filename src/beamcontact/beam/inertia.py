@@ -1,3 +1,7 @@
+from __future__ import annotations
+
+from beamcontact._jax import jnp
+
 """Inertia of the planar Bernoulli-Euler beam (paper eqs. 15-22, 27-29).
 
 The virtual work of the inertia forces, eq. (27)-(28), over the reference volume
@@ -18,7 +22,6 @@ on x, v and a. Inertia has no potential, so its tangent is the AD Jacobian of th
 force (``jax.jacfwd``), not a Hessian.
 """
 
-import jax.numpy as jnp
 
 
 def _normal(g1):

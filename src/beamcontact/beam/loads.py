@@ -1,3 +1,7 @@
+from __future__ import annotations
+
+from beamcontact._jax import jnp
+
 """Potentials of point loads: a dead force and a moment at a parameter of the axis.
 
 The moment M is work-conjugate to the rotation theta of the axis tangent at the load
@@ -8,7 +12,6 @@ which is exact for any total rotation (several turns included) as long as one st
 turns the tangent by less than pi. theta_n and t_n are array data (no recompilation).
 """
 
-import jax.numpy as jnp
 
 
 def tangent_rotation(t, theta_n, t_n):

@@ -23,8 +23,9 @@ it approaches, so that the bound scales at least linearly when the step shrinks)
 the solve, to the actual displacement of the step.
 """
 
-import jax.numpy as jnp
+from __future__ import annotations
 
+from beamcontact._jax import jnp
 from beamcontact.contact.blocks import _block_geometry, over_real_chunks, point_mask
 from beamcontact.contact.points import ContactElements
 

@@ -15,17 +15,17 @@ closest-pair selection for IPIP (:mod:`beamcontact.contact.select`: 1 or 1/2 per
 dynamics).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
-import jax
-import jax.numpy as jnp
-
+from beamcontact._jax import jax, jnp, pytree
 from beamcontact.contact.laws import ContactLaw
 from beamcontact.contact.obstacles import Obstacles
 from beamcontact.contact.points import ContactElements
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class ContactSet:
     """Candidate blocks frozen for one step: pairs (C, 2) global element indices (padding
@@ -38,7 +38,7 @@ class ContactSet:
     law: ContactLaw
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class FrozenContact:
     """What the assembly needs of contact in one step: the contact points of every

@@ -21,12 +21,13 @@ pairs in, so a list is a function of the configuration only. Padding entries poi
 the sentinel element index E.
 """
 
+from __future__ import annotations
+
 from typing import NamedTuple
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
+from beamcontact._jax import jax, jnp, lazy_jit
 from beamcontact.contact.points import ContactElements
 
 # cells per axis at most (boxes further out share the last one: still found, as the
@@ -47,7 +48,7 @@ class SearchCapacity(NamedTuple):
     blocks: int
     per_cell: int
 
-    def grown(self, count: int, load: int, limit: int) -> "SearchCapacity":
+    def grown(self, count: int, load: int, limit: int) -> SearchCapacity:
         """Room for ``count`` candidates and cells of ``load`` boxes (each a power of two
         with 25 % to spare; the list at most ``limit``, the number of pairs that may
         interact)."""
@@ -67,12 +68,14 @@ def grown_capacity(count: int, limit: int | None = None) -> int:
     return power if limit is None else max(1, min(power, limit))
 
 
-def element_boxes(x, ce: ContactElements, margin):
-    """Lower and upper corners of each element's grown box, shape (E, 2) each."""
+def element_boxes(x, ce: ContactElements, margin, xp=None):
+    """Lower and upper corners of each element's grown box, shape (E, 2) each (``xp``:
+    the array module, jax.numpy unless NumPy is given for a host check)."""
+    xp = jnp if xp is None else xp
     cps = x[ce.conn]  # (E, n_loc, 2)
-    big = jnp.finfo(x.dtype).max
-    lo = jnp.min(jnp.where(ce.loc_valid[..., None], cps, big), axis=1)
-    hi = jnp.max(jnp.where(ce.loc_valid[..., None], cps, -big), axis=1)
+    big = xp.finfo(x.dtype).max
+    lo = xp.min(xp.where(ce.loc_valid[..., None], cps, big), axis=1)
+    hi = xp.max(xp.where(ce.loc_valid[..., None], cps, -big), axis=1)
     return lo - margin, hi + margin
 
 
@@ -166,12 +169,21 @@ def pair_key(e1, e2, n_elements: int):
     return e1 * (n_elements + 1) + e2
 
 
-_candidates = jax.jit(candidate_pairs, static_argnames=("capacity",))
+_candidates = lazy_jit(candidate_pairs, static_argnames=("capacity",))
 
 
 def all_candidates(x, ce: ContactElements, margin: float) -> np.ndarray:
     """Every candidate pair (P, 2) at x on the host, the capacities grown until the
-    search is complete (for one-off checks such as the initial overlaps)."""
+    search is complete (for one-off checks such as the initial overlaps). Up to
+    :data:`ALL_PAIRS_LIMIT` elements this is :func:`all_pair_candidates` in NumPy (the
+    same tests on the same numbers, without JAX: what a native run checks)."""
+    x = np.asarray(x, dtype=np.float64)
+    E = ce.n_elements
+    if E <= ALL_PAIRS_LIMIT:
+        lo, hi = element_boxes(x, ce, margin, xp=np)
+        i, j = np.triu_indices(E, k=1)
+        hit = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=-1) & ce.may_touch(i, j, np)
+        return np.stack([i[hit], j[hit]], axis=1)
     capacity = SearchCapacity(64, 16)
     limit = max(ce.element_pair_count(), 1)
     while True:

@@ -33,17 +33,18 @@ AD in the point's position (a 2-vector) and taken to the element's control point
 basis row, like the beam-to-beam blocks (:mod:`beamcontact.contact.blocks`).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
+from beamcontact._jax import jax, jnp, pytree
 from beamcontact._x64 import as_float
 from beamcontact.contact.points import ContactElements
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class Obstacles:
     """O rigid obstacles as arrays: point (O, 2) a point of a wall's surface or a
@@ -68,7 +69,7 @@ def obstacles_from(walls: list[tuple], circles: list[tuple]) -> Obstacles:
     beta = [w[2] for w in walls] + [c[2] for c in circles]
     return Obstacles(point=as_float(np.reshape(point, (-1, 2))),
                      normal=as_float(np.reshape(normal, (-1, 2))), radius=as_float(radius),
-                     circle=jnp.asarray(np.arange(len(point)) >= len(walls)),
+                     circle=np.arange(len(point)) >= len(walls),
                      beta=as_float(beta))
 
 

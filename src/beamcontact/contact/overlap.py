@@ -88,7 +88,7 @@ def initial_overlaps(x, ce, beam_names: Sequence[str]) -> list[Overlap]:
     beam_of = np.asarray(ce.beam)
     points = np.einsum("esk,ekd->esd", np.asarray(ce.R, dtype=float), x[conn])  # (E, S, 2)
     pairs = all_candidates(x, ce, float(radius.max()))
-    mask = np.asarray(ce.point_mask(pairs[:, 0], pairs[:, 1])) if len(pairs) else None
+    mask = ce.point_mask(pairs[:, 0], pairs[:, 1], np) if len(pairs) else None
     tol = 1e-9 * float(radius.max())  # equal gaps to round-off of the radii: a plateau
     hits = _negative_gaps(points, radius, pairs, mask, tol)
     if hits is None:

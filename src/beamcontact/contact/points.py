@@ -14,17 +14,18 @@ pairs is kept: the broad phase (:mod:`beamcontact.contact.broadphase`) applies t
 the boxes it finds.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass, field
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
+from beamcontact._jax import jax, jnp, pytree
 from beamcontact._x64 import as_float
 from beamcontact.spline import nurbs_basis_derivatives
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class ContactElements:
     """Per global element: shapes conn, loc_valid (E, n_loc); R (E, n_s, n_loc);
@@ -56,20 +57,23 @@ class ContactElements:
         """The padding entry (E, E) of candidate lists."""
         return jnp.array([self.n_elements, self.n_elements])
 
-    def may_touch(self, e1, e2):
+    def may_touch(self, e1, e2, xp=None):
         """Whether elements e1 and e2 (global indices, any broadcastable shapes, < E) hold
         a pair of points that may interact: their beams interact and, on one beam, they
-        are different elements with two points at least ``exclusion`` apart along it."""
+        are different elements with two points at least ``exclusion`` apart along it
+        (``xp``: the array module, jax.numpy unless NumPy is given)."""
+        xp = jnp if xp is None else xp
         b1, b2 = self.beam[e1], self.beam[e2]
         ns = self.s.shape[1]
-        spread = jnp.maximum(self.s[e2, ns - 1] - self.s[e1, 0], self.s[e1, ns - 1] - self.s[e2, 0])
+        spread = xp.maximum(self.s[e2, ns - 1] - self.s[e1, 0], self.s[e1, ns - 1] - self.s[e2, 0])
         own = (e1 != e2) & (spread >= self.exclusion)
         return self.allowed[b1, b2] & ((b1 != b2) | own)
 
-    def point_mask(self, e1, e2):
+    def point_mask(self, e1, e2, xp=None):
         """(..., n_s, n_s) whether each point pair of elements e1, e2 (< E) may interact:
-        :meth:`may_touch` refined point by point on one beam."""
-        far = jnp.abs(self.s[e1][..., :, None] - self.s[e2][..., None, :]) >= self.exclusion
+        :meth:`may_touch` refined point by point on one beam (``xp`` as there)."""
+        xp = jnp if xp is None else xp
+        far = xp.abs(self.s[e1][..., :, None] - self.s[e2][..., None, :]) >= self.exclusion
         same = (self.beam[e1] == self.beam[e2])[..., None, None]
         return self.allowed[self.beam[e1], self.beam[e2]][..., None, None] & (~same | far)
 
@@ -144,8 +148,8 @@ def contact_elements(disc, segments: int, betas, beam_pairs=None, self_contact: 
             allowed[b1, b2] = allowed[b2, b1] = True
     if self_contact:
         np.fill_diagonal(allowed, True)
-    return ContactElements(conn=jnp.asarray(np.array(conn)), loc_valid=jnp.asarray(valid),
+    return ContactElements(conn=np.array(conn), loc_valid=np.array(valid),
                            R=as_float(Rs), w=as_float(ws), s=as_float(ss),
                            radius=as_float(radius), beta=as_float(beta),
-                           beam=jnp.asarray(np.array(beam_of)), allowed=jnp.asarray(allowed),
+                           beam=np.array(beam_of), allowed=allowed,
                            exclusion=as_float(exclusion), n_beams=n_beams)

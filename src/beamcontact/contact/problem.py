@@ -12,12 +12,13 @@ step is redone with a larger motion margin) and that the capacities were enough 
 they grow and the step is redone).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
+from beamcontact._jax import jnp, lazy_jit, pytree
 from beamcontact.contact.blocks import (
     CHUNK,
     ContactSet,
@@ -38,7 +39,7 @@ from beamcontact.contact.points import ContactElements
 from beamcontact.contact.select import closest_pair_weights
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class ContactSearch:
     """What a jitted step needs to find and check its own contact set: the contact points,
@@ -175,7 +176,7 @@ def near_candidates(x, ce, reach, interaction, motion, capacity: SearchCapacity)
     return near_blocks(x, ce, pairs, interaction + 2.0 * motion), count, load
 
 
-_near_set = jax.jit(near_candidates, static_argnames=("capacity",))
+_near_set = lazy_jit(near_candidates, static_argnames=("capacity",))
 
 
 def candidate_gaps(x, ce, margin, capacity: SearchCapacity):
@@ -184,7 +185,7 @@ def candidate_gaps(x, ce, margin, capacity: SearchCapacity):
     return pairs, block_gaps(x, ce, pairs), count, load
 
 
-_candidate_gaps = jax.jit(candidate_gaps, static_argnames=("capacity",))
+_candidate_gaps = lazy_jit(candidate_gaps, static_argnames=("capacity",))
 
 
 def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: SearchCapacity):
@@ -211,10 +212,10 @@ def missed_blocks(x, ce, frozen_pairs, reach, interaction, capacity: SearchCapac
     return ~jnp.all(found), count, load, gap
 
 
-_after_step = jax.jit(missed_blocks, static_argnames=("capacity",))
+_after_step = lazy_jit(missed_blocks, static_argnames=("capacity",))
 
 
-@jax.jit
+@lazy_jit
 def _smallest_obstacle_gap(x, ce, obstacles):
     return jnp.min(obstacle_gaps(x, ce, obstacles))
 

@@ -35,7 +35,6 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.special import gammaln, kve
 
 from beamcontact.contact.laws import CoarseGrained
 
@@ -74,6 +73,8 @@ def washboard_variation(rho, m):
     (module docstring); accurate to a few per cent for rho <= 4, an under-estimate
     beyond (the higher modes add up). NaN for m <= 4, where the line integral of eq. (9)
     diverges and no width exists."""
+    from scipy.special import gammaln, kve  # 0.1 s of import, for coarse-grained runs only
+
     rho = np.asarray(rho, dtype=float)
     if m <= 4.0:
         return np.full(rho.shape, np.nan)

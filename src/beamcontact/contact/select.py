@@ -27,7 +27,6 @@ points. Two rules choose the pairs that carry the penalty (``Penalty.pairing``):
 """
 
 import numpy as np
-from scipy import ndimage
 
 
 def closest_pair_weights(q: np.ndarray, pairs: np.ndarray, beam_of: np.ndarray,
@@ -107,6 +106,8 @@ def _zone_weights(grid: np.ndarray, tol: np.ndarray, q_active: float) -> np.ndar
         for dj in (-1, 0, 1):
             if di or dj:
                 is_min &= grid <= padded[1 + di : n1 + 1 + di, 1 + dj : n2 + 1 + dj] + tol
+    from scipy import ndimage  # its import costs 0.1 s; the native engine has its own
+
     labels, count = ndimage.label(is_min, structure=np.ones((3, 3)))
     weights = np.zeros_like(grid)
     for lab in range(1, count + 1):
@@ -143,8 +144,7 @@ def point_weights_on_device(q, pairs, ce, q_active, rtol: float = 1e-9):
     minimum and the tie count are taken over both sides. Equality, tie counts and shares
     use the host's arithmetic.
     """
-    import jax
-    import jax.numpy as jnp
+    from beamcontact._jax import jax, jnp
 
     C, ns, _ = q.shape
     E = ce.n_elements

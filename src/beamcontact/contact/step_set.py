@@ -13,8 +13,9 @@ in :mod:`beamcontact.contact.problem`; both call the same search and block funct
   the solution, the smallest gap and the actual approach.
 """
 
-import jax.numpy as jnp
+from __future__ import annotations
 
+from beamcontact._jax import jnp
 from beamcontact.contact.advance import approach_ratio
 from beamcontact.contact.blocks import ContactSet
 from beamcontact.contact.broadphase import SearchCapacity

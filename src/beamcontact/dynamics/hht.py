@@ -9,12 +9,11 @@ v_{n+1} and a_{n+1} from Newmark (eqs. 33-35). Newton-Raphson runs inside one
 ``lax.while_loop``; the step returns a status instead of raising.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
-from functools import partial
 
-import jax
-import jax.numpy as jnp
-
+from beamcontact._jax import jax, jnp, lazy_jit, pytree
 from beamcontact._persistent import persistent_jit
 from beamcontact.assembly.inertia import (
     inertia_force_and_mass,
@@ -37,7 +36,7 @@ from beamcontact.solvers.newton import NewtonResult, newton
 DIVERGE_AFTER = 6
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class DynState:
     """State after an accepted step: time, displacement, velocity, acceleration, the HHT
@@ -77,7 +76,7 @@ def initial_state(u0, v0, model: Model, load_state: LoadState,
     return DynState(jnp.asarray(0.0), u0, v0, a0, f_pot, load_state)
 
 
-@partial(jax.jit, static_argnames=("max_iterations",))
+@lazy_jit(static_argnames=("max_iterations",))
 def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs, max_iterations: int,
              contact: FrozenContact | None = None) -> tuple[DynState, NewtonResult]:
     """Advance by dt; returns the new state (meaningful only if converged) and Newton info.

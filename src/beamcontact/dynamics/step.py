@@ -9,12 +9,13 @@ error estimate (Zienkiewicz & Xie 1991), the post-step contact checks and the
 diagnostics. :class:`JaxEngine` is what the driver (dynamics/driver.py) calls.
 """
 
+from __future__ import annotations
+
 from dataclasses import replace
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
+from beamcontact._jax import jax, jnp, lazy_jit
 from beamcontact._persistent import persistent_jit
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
@@ -34,7 +35,7 @@ from beamcontact.dynamics.report import (
 from beamcontact.solvers.newton import NewtonOptions
 
 
-@jax.jit
+@lazy_jit
 def diagnostics(state: DynState, model: Model, contact: FrozenContact | None = None) -> dict:
     """Energies (contact included) and linear momentum of a state."""
     e = energies(state.u, model, 1.0, state.load_state)
@@ -129,18 +130,18 @@ def _motion(state: DynState, h):
     return 2.0 * jnp.sqrt(2.0) * (v * h + 0.5 * a * h * h)
 
 
-@jax.jit
+@lazy_jit
 def _predicted_x(state: DynState, model: Model, h):
     return model.x_ref + predictor(state, h).reshape(-1, 2)
 
 
-@jax.jit
+@lazy_jit
 def positions(u, model: Model):
     """Control points (n_cp, 2) of the flat displacement u."""
     return model.x_ref + u.reshape(-1, 2)
 
 
-@jax.jit(static_argnames=("capacity",))
+@lazy_jit(static_argnames=("capacity",))
 def closest_pair_candidates(state: DynState, model: Model, h, motion_factor,
                             search: ContactSearch, *, capacity: SearchCapacity):
     """Predictor, motion bound, candidate blocks and their point-pair gaps in one dispatch,

@@ -4,9 +4,10 @@ Host-side NumPy; the result is a :class:`Model` pytree plus a :class:`Discretiza
 that keeps what the writers need (curves, offsets, names).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
-import jax.numpy as jnp
 import numpy as np
 
 from beamcontact._x64 import as_float
@@ -138,7 +139,7 @@ def _blocks(disc: Discretization, case: Case) -> tuple[ElementBlock, ...]:
     blocks = []
     for parts in groups.values():
         cat = {k: np.concatenate([d[k] for d in parts]) for k in parts[0]}
-        conn = jnp.asarray(cat.pop("conn"))
+        conn = cat.pop("conn")
         blocks.append(ElementBlock(conn=conn, **{k: as_float(v) for k, v in cat.items()}))
     return tuple(blocks)
 
@@ -157,7 +158,7 @@ def _point_loads(case: Case, disc: Discretization) -> PointLoads:
         R[i, :m], dR[i, :m] = d[0], d[1]
     force = np.array([ld.force for ld in case.loads], float).reshape(n, 2)
     moment = np.array([ld.moment for ld in case.loads], float)
-    return PointLoads(conn=jnp.asarray(conn), R=as_float(R), dR=as_float(dR),
+    return PointLoads(conn=conn, R=as_float(R), dR=as_float(dR),
                       force=as_float(force), moment=as_float(moment))
 
 

@@ -13,6 +13,7 @@ which engine runs a case and why.
 
 from dataclasses import dataclass
 
+from beamcontact._jax import gpu_plugin_installed
 from beamcontact.contact.broadphase import ALL_PAIRS_LIMIT
 from beamcontact.contact.laws import CoarseGrained, Penalty
 from beamcontact.contact.problem import ContactProblem
@@ -99,8 +100,7 @@ def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
                               contact)
         state = engine.initial_state(v0) if initial else None
         return DynamicStart(prepared, engine, step_control(case), state)
-    import jax.numpy as jnp
-
+    from beamcontact._jax import jnp
     from beamcontact.assembly.model import initial_load_state
     from beamcontact.contact.problem import freeze
     from beamcontact.dynamics.hht import initial_state
@@ -148,14 +148,6 @@ def native_unsupported(case: Case, law=None) -> str | None:
 _NATIVE_LAWS = (CoarseGrained, Penalty)
 
 
-def _gpu_installed() -> bool:
-    """Whether a GPU plugin of JAX is installed (found without importing JAX)."""
-    from importlib.util import find_spec
-
-    return any(find_spec(name) is not None
-               for name in ("jax_cuda12_plugin", "jax_cuda13_plugin", "jax_rocm60_plugin"))
-
-
 def choose_engine(case: Case, law=None) -> tuple[str, str]:
     """The engine that runs ``case`` (with its contact law object ``law``, when built)
     and why (``solver.engine``; docs/architecture.md, "Engines"); "native" asked for a
@@ -171,7 +163,7 @@ def choose_engine(case: Case, law=None) -> tuple[str, str]:
         return "native", "asked for (solver.engine = \"native\")"
     if lacking is not None:
         return "jax", f"the native engine cannot run {lacking} yet"
-    if _gpu_installed():
+    if gpu_plugin_installed():
         return "jax", "a GPU plugin of JAX is installed"
     return "native", "every term of the case has a native kernel"
 

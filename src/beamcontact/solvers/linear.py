@@ -19,20 +19,20 @@ Every function here takes either kind, so the assembly, Newton and HHT code is w
 once; on the dense kind each does exactly the arithmetic of the dense code it replaced.
 """
 
-from dataclasses import dataclass
+from __future__ import annotations
 
-import jax
-import jax.numpy as jnp
+from dataclasses import dataclass, field
+
 import numpy as np
-import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
+
+from beamcontact._jax import gpu_plugin_installed, imported, jax, jnp, pytree
 
 # "auto" switches to the sparse tangent on CPU from this many dofs on: there the dense
 # solve and the sparse callback cost about the same (benchmarks/linear_solver.py)
 AUTO_SPARSE_DOFS = 300
 
 
+@pytree
 @dataclass(frozen=True)
 class SparseTangent:
     """An n x n matrix as coordinate triplets: entry (rows[k], cols[k]) += vals[k]."""
@@ -40,22 +40,22 @@ class SparseTangent:
     rows: jax.Array
     cols: jax.Array
     vals: jax.Array
-    n: int
-
-
-jax.tree_util.register_dataclass(SparseTangent, data_fields=["rows", "cols", "vals"],
-                                 meta_fields=["n"])
+    n: int = field(metadata=dict(static=True))
 
 
 def use_sparse(choice: str, n_dof: int, backend: str | None = None) -> bool:
     """Whether ``solver.linear_solver = choice`` means the sparse tangent for n_dof dofs:
     "auto" is sparse on CPU from :data:`AUTO_SPARSE_DOFS` dofs on and dense on an
-    accelerator (whose dense LU is fast and whose host callbacks are not)."""
+    accelerator (whose dense LU is fast and whose host callbacks are not). The backend,
+    unless given, is JAX's default; before JAX is imported (a native run never imports
+    it) an installed GPU plugin stands for an accelerator."""
     if choice not in ("auto", "dense", "sparse"):
         raise ValueError(f"linear_solver must be 'auto', 'dense' or 'sparse', not {choice!r}")
     if choice != "auto":
         return choice == "sparse"
-    backend = jax.default_backend() if backend is None else backend
+    if backend is None:
+        backend = jax.default_backend() if imported() else (
+            "gpu" if gpu_plugin_installed() else "cpu")
     return backend == "cpu" and n_dof >= AUTO_SPARSE_DOFS
 
 
@@ -109,8 +109,10 @@ def to_dense(K) -> np.ndarray:
     return compressed(K.rows, K.cols, K.vals, K.n).toarray()
 
 
-def compressed(rows, cols, vals, n: int) -> sp.csc_matrix:
+def compressed(rows, cols, vals, n: int):
     """The triplets summed into a compressed-column matrix."""
+    import scipy.sparse as sp
+
     return sp.csc_matrix((np.asarray(vals), (np.asarray(rows), np.asarray(cols))),
                          shape=(n, n))
 
@@ -128,6 +130,8 @@ def host_solve(rows, cols, vals, rhs) -> np.ndarray:
     if 4 * (2 * lower + upper + 1) < n:
         return _banded_solve(rows, cols, vals, rhs, lower, upper)
     try:
+        import scipy.sparse.linalg as spla
+
         return spla.splu(compressed(rows, cols, vals, n)).solve(rhs)
     except RuntimeError:  # "Factor is exactly singular"
         return np.full(n, np.nan)
@@ -140,6 +144,8 @@ def _banded_solve(rows, cols, vals, rhs, lower: int, upper: int) -> np.ndarray:
     height = 2 * lower + upper + 1
     ab = np.bincount((lower + upper + rows - cols) * n + cols, weights=vals,
                      minlength=height * n).reshape(height, n)
+    import scipy.linalg as sla
+
     gbsv = sla.get_lapack_funcs("gbsv", (ab,))
     _, _, x, info = gbsv(lower, upper, ab, rhs, overwrite_ab=True, overwrite_b=True)
     return x if info == 0 else np.full(n, np.nan)

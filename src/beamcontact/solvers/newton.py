@@ -7,11 +7,11 @@ for with ``diverge_after``) divergence ends the loop with ``converged = False``;
 caller (load stepping, time stepping) decides what to do.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
-import jax
-import jax.numpy as jnp
-
+from beamcontact._jax import jax, jnp, pytree
 from beamcontact.solvers.linear import solve
 
 
@@ -24,7 +24,7 @@ class NewtonOptions:
     utol: float = 1e-11
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class NewtonResult:
     """Solution, iterations, convergence flag, final norms and the caller's auxiliary

@@ -4,7 +4,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-import scipy.sparse as sp
 
 from beamcontact.spline.basis import nurbs_basis_derivatives
 
@@ -56,9 +55,11 @@ class NurbsCurve:
         out[:, rows, first[:, None] + np.arange(self.degree + 1)] = ders.transpose(1, 0, 2)
         return out[: nders + 1]
 
-    def sparse_basis(self, u: np.ndarray) -> sp.csr_matrix:
+    def sparse_basis(self, u: np.ndarray):
         """The rational basis at parameters u as a sparse (len(u), n) matrix, p+1 entries
         per row: points = sparse_basis(u) @ control points, in memory linear in both."""
+        import scipy.sparse as sp
+
         u = np.atleast_1d(np.asarray(u, float))
         first, ders = nurbs_basis_derivatives(self.knots, self.degree, self.weights, u)
         m = self.degree + 1

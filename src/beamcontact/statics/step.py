@@ -5,12 +5,13 @@ singular tangent (statics/restraint.py). :class:`JaxStatics` is what the load lo
 (statics/driver.py) calls.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
+from beamcontact._jax import jax, jnp, lazy_jit, pytree
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
 from beamcontact.assembly.system import (
     apply_supports,
@@ -28,7 +29,7 @@ from beamcontact.solvers.newton import NewtonOptions, newton
 from beamcontact.statics.restraint import beam_modes, beam_ranges, singular_tangent_message
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class StaticState:
     """A converged state of load stepping: the displacement and the loads' rotations."""
@@ -54,7 +55,7 @@ class LoadAttempt:
     missing: bool
 
 
-@jax.jit(static_argnames=("max_iterations",))
+@lazy_jit(static_argnames=("max_iterations",))
 def load_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iterations,
               contact: FrozenContact | None = None):
     """One load step, the static counterpart of ``dynamics.hht.hht_step``: Newton from the
@@ -68,13 +69,13 @@ def load_step(u0, model: Model, lam, load_state: LoadState, tolerances, max_iter
     return newton(residual_tangent, u0, max_iterations, tolerances)
 
 
-@jax.jit
+@lazy_jit
 def _energies(u, model, lam, state, contact: FrozenContact | None = None):
     return {**energies(u, model, lam, state), "E_contact": contact_energy_of(u, model, contact)}
 
 
-_update = jax.jit(update_load_state)
-_tangent = jax.jit(residual_tangent_with_contact)
+_update = lazy_jit(update_load_state)
+_tangent = lazy_jit(residual_tangent_with_contact)
 
 
 def mechanism_message(model: Model, contact: ContactProblem | None, cs, load_state,

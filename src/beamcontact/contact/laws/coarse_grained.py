@@ -1,16 +1,17 @@
 """Coarse-grained section-section potential (paper Sec. 2.2, eq. 9) as a contact-law
 object (:mod:`beamcontact.contact.laws`)."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 from typing import ClassVar
 
-import jax
-import jax.numpy as jnp
-from jax.scipy.special import gammaln
+from beamcontact._jax import jax, jnp, pytree
 
 
 def cg_constant(m, R1, R2):
     """C(m, R1, R2) of eq. (9)."""
+    gammaln = jax.scipy.special.gammaln
     log_c = ((2.5 - m) * jnp.log(2.0) + 1.5 * jnp.log(jnp.pi) + gammaln(m - 3.5)
              - 2.0 * gammaln(0.5 * m))
     return jnp.exp(log_c) * jnp.sqrt(R1 * R2 / (R1 + R2))
@@ -19,6 +20,7 @@ def cg_constant(m, R1, R2):
 def cg_wall_constant(m, R):
     """C_w(m, R) = (2 pi)^(3/2) sqrt(R) Gamma(m - 9/2) / Gamma(m - 1) of the
     section-to-half-space potential (:mod:`beamcontact.contact.obstacles`)."""
+    gammaln = jax.scipy.special.gammaln
     log_c = 1.5 * jnp.log(2.0 * jnp.pi) + gammaln(m - 4.5) - gammaln(m - 1.0)
     return jnp.exp(log_c) * jnp.sqrt(R)
 
@@ -52,7 +54,7 @@ def power_repulsion(q, amplitude, n, q_reg):
     return jnp.where(q > q_reg, exact, taylor)
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class CoarseGrained:
     """Coarse-grained section-section potential (eq. 9), per unit length of both axes:

@@ -1,15 +1,16 @@
 """IPIP penalty law (paper Sec. 2.1, eqs. 3-5) as a contact-law object
 (:mod:`beamcontact.contact.laws`)."""
 
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-import jax
-import jax.numpy as jnp
+from beamcontact._jax import jnp, pytree
 
 
-@jax.tree_util.register_dataclass
+@pytree
 @dataclass(frozen=True)
 class Penalty:
     """IPIP penalty law (eqs. 3-5): Pi = eps q^2 / 2 for q < 0, else 0, acting on the
