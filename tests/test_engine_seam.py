@@ -79,6 +79,36 @@ def test_only_one_module_imports_jax():
     assert offenders == []
 
 
+_BLAS_THREADS = """
+import tomllib
+from pathlib import Path
+from threadpoolctl import threadpool_info
+import beamcontact
+from beamcontact.io.case import parse_case
+from beamcontact.runner import execute
+
+data = tomllib.loads(Path("examples/pinned_beam_vibration/case.toml").read_text())
+data["analysis"]["t_end"] = 0.005
+data["solver"] = {"engine": "jax"}
+threads = set()
+beamcontact.enable_x64()
+execute(parse_case(data), "", None, lambda info: threads.update(
+    lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"))
+print(sorted(threads))
+"""
+
+
+def test_blas_runs_on_one_thread_in_a_fresh_process():
+    """A run limits BLAS to one thread (runner.execute: a threaded LU's round-off
+    depends on the thread count), also when JAX, and with it the OpenBLAS its LAPACK
+    calls, is first imported inside the run: a limit set before a library is loaded
+    does not reach it."""
+    repo = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "-c", _BLAS_THREADS], capture_output=True,
+                         text=True, check=True, cwd=repo)
+    assert out.stdout.strip() == "[1]", out.stdout + out.stderr
+
+
 class FallingMass:
     """An engine of one point mass m under gravity g; its state is (t, y, v)."""
 

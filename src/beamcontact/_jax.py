@@ -78,6 +78,24 @@ def pytree(cls: type) -> type:
     return cls
 
 
+def model_array(x, dtype=None):
+    """``x`` as an array of the model (the case's data built on the host): a JAX array
+    when JAX is imported already, as JAX code that closes over the model needs, else a
+    NumPy array, so that a native run never imports JAX (the JAX engine moves such a
+    model to its device once: :func:`on_device`)."""
+    import numpy as np
+
+    a = np.asarray(x, dtype=dtype)
+    return jnp.asarray(a) if imported() else a
+
+
+def on_device(tree):
+    """``tree`` with every array leaf a JAX array on the default device: the JAX engine
+    moves the model (built in NumPy) once, not at every call, and its jitted functions
+    see the same arguments, never host constants, whoever built the model."""
+    return jax.tree.map(jnp.asarray, tree)
+
+
 def lazy_jit(fun=None, **options):
     """``jax.jit(fun, **options)``, made at the first call (a module-level jit would
     import JAX with the module)."""

@@ -38,8 +38,10 @@ def require_x64() -> None:
 
 
 def as_float(x):
-    """Host value -> float64 NumPy array (never a silent float32); JAX takes it as it is
-    and the JAX engine moves the model to its device once."""
+    """Host value -> float64 array of the model (never a silent float32): NumPy's, or
+    JAX's when JAX is imported already (:func:`beamcontact._jax.model_array`)."""
     import numpy as np
 
-    return np.asarray(x, dtype=np.float64)
+    from beamcontact._jax import model_array
+
+    return model_array(x, np.float64)

@@ -96,6 +96,9 @@ def execute(case: Case, case_text: str, out_dir: Path | None,
     depend on the machine and on how many runs share it (a sweep's workers are
     single-threaded). For the small dense systems here one thread is also the fastest.
     """
+    # scipy.linalg loads the OpenBLAS that JAX's LAPACK calls, so that the limit below
+    # reaches it (a library loaded later keeps its threads); Numba loads it anyway
+    import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):

@@ -100,10 +100,13 @@ def element_dofs(conn: jax.Array) -> jax.Array:
 
 
 def initial_load_state(model: Model) -> LoadState:
-    """Zero rotation and the reference tangent at every load point (host arrays)."""
+    """Zero rotation and the reference tangent at every load point (arrays of the
+    model's kind: :func:`beamcontact._jax.model_array`)."""
     loads = model.loads
-    t = np.einsum("lk,lkd->ld", np.asarray(loads.dR), np.asarray(model.x_ref)[
-        np.asarray(loads.conn)])
-    return LoadState(theta=np.zeros(t.shape[0]), tangent=t)
+    if isinstance(model.x_ref, np.ndarray):
+        t = np.einsum("lk,lkd->ld", loads.dR, model.x_ref[loads.conn])
+        return LoadState(theta=np.zeros(t.shape[0]), tangent=t)
+    t = jnp.einsum("lk,lkd->ld", loads.dR, model.x_ref[loads.conn])
+    return LoadState(theta=jnp.zeros(t.shape[0]), tangent=t)
 
 

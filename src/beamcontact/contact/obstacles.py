@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from beamcontact._jax import jax, jnp, pytree
+from beamcontact._jax import jax, jnp, model_array, pytree
 from beamcontact._x64 import as_float
 from beamcontact.contact.points import ContactElements
 
@@ -69,7 +69,7 @@ def obstacles_from(walls: list[tuple], circles: list[tuple]) -> Obstacles:
     beta = [w[2] for w in walls] + [c[2] for c in circles]
     return Obstacles(point=as_float(np.reshape(point, (-1, 2))),
                      normal=as_float(np.reshape(normal, (-1, 2))), radius=as_float(radius),
-                     circle=np.arange(len(point)) >= len(walls),
+                     circle=model_array(np.arange(len(point)) >= len(walls)),
                      beta=as_float(beta))
 
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from beamcontact._jax import jax, jnp, pytree
+from beamcontact._jax import jax, jnp, model_array, pytree
 from beamcontact._x64 import as_float
 from beamcontact.spline import nurbs_basis_derivatives
 
@@ -148,8 +148,8 @@ def contact_elements(disc, segments: int, betas, beam_pairs=None, self_contact: 
             allowed[b1, b2] = allowed[b2, b1] = True
     if self_contact:
         np.fill_diagonal(allowed, True)
-    return ContactElements(conn=np.array(conn), loc_valid=np.array(valid),
+    return ContactElements(conn=model_array(conn), loc_valid=model_array(valid),
                            R=as_float(Rs), w=as_float(ws), s=as_float(ss),
                            radius=as_float(radius), beta=as_float(beta),
-                           beam=np.array(beam_of), allowed=allowed,
+                           beam=model_array(beam_of), allowed=model_array(allowed),
                            exclusion=as_float(exclusion), n_beams=n_beams)

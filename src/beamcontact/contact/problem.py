@@ -14,11 +14,11 @@ they grow and the step is redone).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from beamcontact._jax import jnp, lazy_jit, pytree
+from beamcontact._jax import jnp, lazy_jit, on_device, pytree
 from beamcontact.contact.blocks import (
     CHUNK,
     ContactSet,
@@ -81,6 +81,12 @@ class ContactProblem:
         """Centre-line distance beyond which a point pair contributes nothing (inf: every
         box candidate is kept)."""
         return float(self.law.interaction_distance())
+
+    def on_device(self) -> ContactProblem:
+        """This problem with its contact points and obstacles as JAX arrays on the
+        default device (:func:`beamcontact._jax.on_device`; the JAX engine's copy)."""
+        return replace(self, elements=on_device(self.elements),
+                       obstacles=None if self.obstacles is None else on_device(self.obstacles))
 
     @property
     def search(self) -> ContactSearch:

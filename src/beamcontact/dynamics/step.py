@@ -15,7 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from beamcontact._jax import jax, jnp, lazy_jit
+from beamcontact._jax import jax, jnp, lazy_jit, on_device
 from beamcontact._persistent import persistent_jit
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
@@ -167,12 +167,13 @@ class JaxEngine:
 
     def __init__(self, model: Model, contact: ContactProblem | None, alpha: float,
                  options: NewtonOptions, length: float, dt_ref: float):
-        self.model, self.contact, self.options = model, contact, options
+        self.model, self.options = on_device(model), options
+        self.contact = None if contact is None else contact.on_device()
         # host scalars as NumPy float64: strongly typed like the arrays they replace, and
         # passed to the jitted step without eager device operations
         self._scalars = (np.float64(alpha), np.float64(options.rtol),
                          np.float64(options.utol * length), np.float64(dt_ref))
-        self._search = None if contact is None else contact.search
+        self._search = None if contact is None else self.contact.search
 
     def attempt(self, state: DynState, h: float, motion_factor: float,
                 capacity: SearchCapacity | None) -> Attempt | Overflow:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from beamcontact._jax import model_array
 from beamcontact._x64 import as_float
 from beamcontact.assembly.model import ElementBlock, Model, PointLoads
 from beamcontact.beam.mesh import BeamMesh, build_mesh, point_basis, refine_axis
@@ -139,7 +140,7 @@ def _blocks(disc: Discretization, case: Case) -> tuple[ElementBlock, ...]:
     blocks = []
     for parts in groups.values():
         cat = {k: np.concatenate([d[k] for d in parts]) for k in parts[0]}
-        conn = cat.pop("conn")
+        conn = model_array(cat.pop("conn"))
         blocks.append(ElementBlock(conn=conn, **{k: as_float(v) for k, v in cat.items()}))
     return tuple(blocks)
 
@@ -158,7 +159,7 @@ def _point_loads(case: Case, disc: Discretization) -> PointLoads:
         R[i, :m], dR[i, :m] = d[0], d[1]
     force = np.array([ld.force for ld in case.loads], float).reshape(n, 2)
     moment = np.array([ld.moment for ld in case.loads], float)
-    return PointLoads(conn=conn, R=as_float(R), dR=as_float(dR),
+    return PointLoads(conn=model_array(conn), R=as_float(R), dR=as_float(dR),
                       force=as_float(force), moment=as_float(moment))
 
 

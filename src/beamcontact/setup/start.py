@@ -100,19 +100,20 @@ def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
                               contact)
         state = engine.initial_state(v0) if initial else None
         return DynamicStart(prepared, engine, step_control(case), state)
-    from beamcontact._jax import jnp
+    from beamcontact._jax import jnp, on_device
     from beamcontact.assembly.model import initial_load_state
     from beamcontact.contact.problem import freeze
     from beamcontact.dynamics.hht import initial_state
     from beamcontact.dynamics.step import JaxEngine
 
+    engine = JaxEngine(model, contact, an.alpha, prepared.options, prepared.length, an.dt)
     state = None
-    if initial:
+    if initial:  # from the engine's device copies of the model and the contact points
+        model, contact = engine.model, engine.contact
         cs0 = None if contact is None else contact.grown_set(
             model.x_ref, 0.0, contact.first_capacity(case.contact.capacity))[0]
         state = initial_state(jnp.zeros(model.n_dof), jnp.asarray(v0), model,
-                              initial_load_state(model), freeze(contact, cs0))
-    engine = JaxEngine(model, contact, an.alpha, prepared.options, prepared.length, an.dt)
+                              on_device(initial_load_state(model)), freeze(contact, cs0))
     return DynamicStart(prepared, engine, step_control(case), state)
 
 

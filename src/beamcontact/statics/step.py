@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from beamcontact._jax import jax, jnp, lazy_jit, pytree
+from beamcontact._jax import jax, jnp, lazy_jit, on_device, pytree
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
 from beamcontact.assembly.system import (
     apply_supports,
@@ -106,13 +106,15 @@ class JaxStatics:
 
     def __init__(self, model: Model, contact: ContactProblem | None, options: NewtonOptions,
                  length: float):
-        self.model, self.contact, self.options = model, contact, options
+        self.model, self.options = on_device(model), options
+        self.contact = None if contact is None else contact.on_device()
         # no absolute residual test in statics
         self._tol = jnp.array([options.rtol, 0.0, options.utol * length])
 
     def initial(self) -> StaticState:
         """The unloaded reference state."""
-        return StaticState(jnp.zeros(self.model.n_dof), initial_load_state(self.model))
+        return StaticState(jnp.zeros(self.model.n_dof),
+                           on_device(initial_load_state(self.model)))
 
     def _x(self, u):
         return self.model.x_ref + u.reshape(-1, 2)
