@@ -219,7 +219,7 @@ def fake_runner(monkeypatch):
 
     calls = {}
 
-    def run_case(case, text, out, progress, restart=False):
+    def run_case(case, text, out, progress, restart=False, overwrite=False):
         calls["progress"] = progress
         return calls["do"](progress)
 

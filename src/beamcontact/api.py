@@ -131,7 +131,8 @@ def _path(path: str | Path | None) -> Path | None:
 
 
 def simulate(case: Case | str | Path, out: str | Path | None = None, *,
-             progress: bool = False, restart: bool = False) -> Result:
+             progress: bool = False, restart: bool = False,
+             overwrite: bool = False) -> Result:
     """Run a case (statics or dynamics) and return its :class:`Result`.
 
     Args:
@@ -141,6 +142,9 @@ def simulate(case: Case | str | Path, out: str | Path | None = None, *,
             there as the run goes; when None, nothing is written.
         progress: draw a progress bar on the terminal.
         restart: continue the dynamic run in ``out`` from its last saved state.
+        overwrite: replace the results of an earlier run in ``out`` (without it, a folder
+            that holds results is refused with a CaseError, as is a folder another run is
+            writing into).
 
     JAX is switched to float64 (``jax_enable_x64``) and, unless JAX already has a
     persistent compilation cache, pointed at beamcontact's (as the command line does:
@@ -162,7 +166,7 @@ def simulate(case: Case | str | Path, out: str | Path | None = None, *,
         case, text = read_case_file(case)
     out_dir = None if out is None else Path(out)
     with progress_bar(case.title, enabled=progress) as report:
-        summary, record = execute(case, text, out_dir, report, restart)
+        summary, record = execute(case, text, out_dir, report, restart, overwrite)
     return _result(case, summary, record, out_dir)
 
 

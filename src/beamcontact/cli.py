@@ -151,11 +151,16 @@ def run(
     restart: Annotated[bool, typer.Option(
         "--restart", help="Continue the dynamic run in --out from its last saved state to "
         "the case's t_end (only t_end, \\[solver] and \\[output] may have changed).")] = False,
+    overwrite: Annotated[bool, typer.Option(
+        "--overwrite", help="Replace the results of an earlier run in --out (without it, "
+        "a folder that holds results is refused).")] = False,
 ) -> None:
     """Run a case and write history.csv, summary.json, results.h5, VTU/PVD and plots.
 
-    Exit code 0 when the run completed, 1 when the solver stopped, 2 for invalid input,
-    130 when interrupted (Ctrl-C; the results up to the last accepted step are kept).
+    Exit code 0 when the run completed, 1 when the solver stopped, 2 for invalid input
+    (also: another run is writing into --out, or --out holds an earlier run's results and
+    neither --overwrite nor --restart is given), 130 when interrupted (Ctrl-C; the results
+    up to the last accepted step are kept).
     """
     import beamcontact
     from beamcontact._cache import enable_compilation_cache
@@ -166,17 +171,19 @@ def run(
     parsed, text = _load(case)
     if restart and out is None:
         _fail("--restart needs --out DIR, the folder of the run to continue", 2)
+    if restart and overwrite:
+        _fail("--restart continues the run in --out, --overwrite replaces it: give one", 2)
     _check_static_restraints(parsed)
     out = _fresh_dir(case.parent.name if case.name == "case.toml" else case.stem) \
         if out is None else out
     _check_out_dir(out)
     summary = _run_with_progress(parsed, text, out, parsed.title or case.name,
-                                 show=not quiet, restart=restart)
+                                 show=not quiet, restart=restart, overwrite=overwrite)
     _report_run(summary, out)
 
 
 def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
-                       restart: bool) -> dict:
+                       restart: bool, overwrite: bool = False) -> dict:
     """Run the case under a progress bar (unless not ``show``) and return its summary.
 
     The runner reports an interrupt (Ctrl-C) inside the step loop as status "interrupted";
@@ -189,7 +196,8 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
 
     try:
         with progress_bar(title, enabled=show) as progress:
-            return run_case(parsed, text, out, progress, restart=restart)
+            return run_case(parsed, text, out, progress, restart=restart,
+                            overwrite=overwrite)
     except CaseError as exc:
         _fail(str(exc), 2)
     except KeyboardInterrupt:

@@ -27,6 +27,7 @@ from beamcontact.dynamics.driver import DynamicStep, solve_dynamic
 from beamcontact.dynamics.hht import DynState
 from beamcontact.dynamics.report import DIAGNOSTICS
 from beamcontact.io.case import Case, CaseError, parse_case
+from beamcontact.io.output_folder import claimed
 from beamcontact.io.results import read_last_state, write_summary
 from beamcontact.progress import Progress, ProgressInfo
 from beamcontact.record import RunRecord
@@ -77,18 +78,22 @@ class _Tally:
 
 
 def run_case(case: Case, case_text: str, out_dir: Path | None,
-             progress: Progress | None = None, restart: bool = False) -> dict:
+             progress: Progress | None = None, restart: bool = False,
+             overwrite: bool = False) -> dict:
     """Run ``case``, write its results into ``out_dir`` (if given); returns the summary."""
-    return execute(case, case_text, out_dir, progress, restart)[0]
+    return execute(case, case_text, out_dir, progress, restart, overwrite)[0]
 
 
 def execute(case: Case, case_text: str, out_dir: Path | None,
-            progress: Progress | None = None,
-            restart: bool = False) -> tuple[dict, RunRecord]:
+            progress: Progress | None = None, restart: bool = False,
+            overwrite: bool = False) -> tuple[dict, RunRecord]:
     """Run ``case``; returns the summary and the run's in-memory record.
 
-    ``case_text`` is the TOML stored in results.h5 (the case file's text, comments
-    included); ``progress`` is called after every accepted step.
+    ``case_text`` is the TOML stored in results.h5 and written as ``case.toml`` (the case
+    file's text, comments included; empty: the case's own TOML); ``progress`` is called
+    after every accepted step. The run holds ``out_dir`` throughout
+    (:func:`~beamcontact.io.output_folder.claimed`: one run per folder; earlier results
+    are refused unless ``restart`` continues them or ``overwrite`` replaces them).
 
     BLAS/LAPACK (OpenBLAS, used by JAX's CPU linear solves) runs on one thread during the
     run: the summation order of a threaded LU depends on the thread count, and in the
@@ -101,8 +106,9 @@ def execute(case: Case, case_text: str, out_dir: Path | None,
     import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _execute(case, case_text, out_dir, progress, restart)
+    with claimed(out_dir, restart=restart, overwrite=overwrite), \
+            threadpool_limits(limits=1, user_api="blas"):
+        return _execute(case, case_text or case.to_toml(), out_dir, progress, restart)
 
 
 def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progress | None,
@@ -114,6 +120,8 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
         raise CaseError("a restart needs the output folder of the run to continue")
     wall0 = time.perf_counter()
     prepared = prepare(case)
+    if out_dir is not None:  # the effective case, as a sweep's runs have it
+        (out_dir / "case.toml").write_text(case_text, encoding="utf-8")
     model, disc, contact = prepared.model, prepared.disc, prepared.contact
     warnings = [] if restart else _check_initial_overlap(case, model, contact)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
