@@ -98,3 +98,83 @@ def test_restart_and_overwrite_exclude_each_other(tmp_path):
                 "--overwrite")
     assert proc.returncode == 2
     _one_line(proc, "--restart", "--overwrite")
+
+
+def test_a_full_disk_ends_the_run_with_its_summary(tmp_path, monkeypatch):
+    """The disk fills during a run (its free space reported below what the next batch of
+    states needs, as shutil.disk_usage would): the run stops with exit code 1 and one
+    line, summary.json says why and where, and what was written is whole and readable:
+    history.csv up to the last step and results.h5 up to the last state that fitted."""
+    import json
+
+    import h5py
+    from typer.testing import CliRunner
+
+    import beamcontact.io.results as results
+    import beamcontact.record as record
+    from beamcontact.cli import app
+    from beamcontact.io.results import read_history
+
+    flushes = []
+
+    def free(path):
+        if path.name == "results.h5":  # the writer of the states asks before each batch
+            flushes.append(path)
+            return 2**40 if len(flushes) < 3 else 0
+        return 2**40
+
+    monkeypatch.setattr(results, "free_space", free)
+    monkeypatch.setattr(record, "free_space", free)
+    monkeypatch.setattr(results.StateWriter, "flush_seconds", 0.0)  # a batch per state
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["run", str(_case(tmp_path, 0.01)), "--out", str(out),
+                                      "-q"])
+    assert result.exit_code == 1, result.output
+    assert "Traceback" not in result.output
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    assert summary["status"] == "output_failed"
+    assert "its disk is full" in summary["message"] and "t = 0.002 s" in summary["message"]
+    assert summary["steps"] == 2
+    history = read_history(out / "history.csv")
+    assert list(history["step"]) == [0, 1, 2]
+    with h5py.File(out / "results.h5", "r") as f:
+        assert list(f["states/step"][:]) == [0, 1]  # the third batch did not fit
+
+
+_SIGNALLED = """
+import os, signal, sys, threading
+from beamcontact.cli import main
+from beamcontact.record import RunRecord
+
+row, signum = RunRecord.row, int(sys.argv[3])
+def send_at_step_20(self, step, *args, **kwargs):
+    row(self, step, *args, **kwargs)
+    if step == 20:  # as a scheduler would, from outside the main thread's work
+        threading.Thread(target=os.kill, args=(os.getpid(), signum)).start()
+RunRecord.row = send_at_step_20
+sys.argv = ["beamcontact", "run", sys.argv[1], "--out", sys.argv[2], "-q"]
+main()
+"""
+
+
+def test_sigterm_and_sighup_stop_a_run_like_ctrl_c(tmp_path):
+    """What a batch scheduler sends before it kills: exit 128 + the signal, one line,
+    summary.json with status "interrupted" naming the signal, every accepted step kept,
+    and --restart continues to the end."""
+    import json
+    import signal
+
+    case = _case(tmp_path, 0.2)
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        out = tmp_path / sig.name
+        proc = subprocess.run([sys.executable, "-c", _SIGNALLED, str(case), str(out),
+                               str(int(sig))], capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 128 + int(sig), proc.stderr
+        _one_line(proc, f"stopped by {sig.name}", str(out))
+        summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+        assert summary["status"] == "interrupted" and summary["signal"] == sig.name
+        assert 20 <= summary["steps"] < 200
+        rest = _cli("run", case, "--out", out, "-q", "--restart")
+        assert rest.returncode == 0, rest.stderr
+        done = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+        assert done["status"] == "completed" and done["t_final"] == 0.2

@@ -159,8 +159,10 @@ def run(
 
     Exit code 0 when the run completed, 1 when the solver stopped, 2 for invalid input
     (also: another run is writing into --out, or --out holds an earlier run's results and
-    neither --overwrite nor --restart is given), 130 when interrupted (Ctrl-C; the results
-    up to the last accepted step are kept).
+    neither --overwrite nor --restart is given), 130 when interrupted (Ctrl-C), 143 and 129
+    when stopped by SIGTERM and SIGHUP (the results up to the last accepted step are kept,
+    summary.json says where it stopped, --restart continues). A result that cannot be
+    written (a full disk) ends the run with code 1 and one line; what was written is kept.
     """
     import beamcontact
     from beamcontact._cache import enable_compilation_cache
@@ -177,8 +179,11 @@ def run(
     out = _fresh_dir(case.parent.name if case.name == "case.toml" else case.stem) \
         if out is None else out
     _check_out_dir(out)
-    summary = _run_with_progress(parsed, text, out, parsed.title or case.name,
-                                 show=not quiet, restart=restart, overwrite=overwrite)
+    from beamcontact.stop_signals import stop_signals_interrupt
+
+    with stop_signals_interrupt():
+        summary = _run_with_progress(parsed, text, out, parsed.title or case.name,
+                                     show=not quiet, restart=restart, overwrite=overwrite)
     _report_run(summary, out)
 
 
@@ -192,6 +197,7 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
     """
     from beamcontact.io.case import CaseError
     from beamcontact.progress import progress_bar
+    from beamcontact.record import OutputError
     from beamcontact.runner import run_case
 
     try:
@@ -200,21 +206,28 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
                             overwrite=overwrite)
     except CaseError as exc:
         _fail(str(exc), 2)
-    except KeyboardInterrupt:
-        _interrupted(out)
+    except OutputError as exc:
+        _fail(f"{exc}; what was written before is in {out}", 1)
+    except KeyboardInterrupt as exc:
+        _interrupted(out, getattr(exc, "name", None))
 
 
-def _interrupted(out: Path) -> None:
-    """Say where the results of an interrupted run are and exit with code 130 (Ctrl-C)."""
-    typer.echo(f"interrupted; results up to the last accepted step are in {out}", err=True)
-    raise typer.Exit(130)
+def _interrupted(out: Path, signal_name: str | None) -> None:
+    """Say where the results of an interrupted run are and exit with code 130 (Ctrl-C) or
+    128 + the signal's number (SIGTERM 143, SIGHUP 129)."""
+    import signal
+
+    by = "interrupted" if signal_name is None else f"stopped by {signal_name}"
+    typer.echo(f"{by}; results up to the last accepted step are in {out}", err=True)
+    raise typer.Exit(130 if signal_name is None else 128 + signal.Signals[signal_name])
 
 
 def _report_run(summary: dict, out: Path) -> None:
-    """Print the outcome of a run and exit with its code (0 completed, 1 stopped, 130
-    interrupted)."""
+    """Print the outcome of a run and exit with its code (0 completed, 1 stopped or its
+    results could not be written, 130 / 143 / 129 interrupted by Ctrl-C / SIGTERM /
+    SIGHUP)."""
     if summary["status"] == "interrupted":
-        _interrupted(out)
+        _interrupted(out, summary.get("signal"))
     typer.echo(f"{summary['status']}: {summary['message']}")
     typer.echo(f"steps {summary['steps']}, Newton iterations {summary['newton_iterations']}, "
                f"cut-backs {summary['cutbacks']}, wall time {summary['wall_time_s']:.2f} s "

@@ -9,15 +9,52 @@ run the standard plots. Nothing is lost when a run stops: every file is valid af
 step.
 """
 
+import math
+import os
+import re
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from beamcontact.io.case import Case, at_fraction
-from beamcontact.io.results import HistoryWriter, StateWriter, read_history
+from beamcontact.io.results import (
+    DISK_RESERVE,
+    HistoryWriter,
+    OutputError,
+    StateWriter,
+    free_space,
+    read_history,
+)
 from beamcontact.io.vtk import VtkSeries, write_obstacles
 from beamcontact.setup.model import Discretization, point_sampler, polyline_matrix
+
+
+def _reason(exc: Exception) -> str:
+    """The short reason of a failed write: the system's words for its errno (HDF5 puts
+    them into a long message of its own)."""
+    if isinstance(exc, OSError) and exc.errno:
+        return os.strerror(exc.errno)
+    found = re.search(r"error message = '([^']*)'", str(exc))
+    return found.group(1) if found else str(exc).splitlines()[0]
+
+
+@contextmanager
+def writing(what: str, record: "RunRecord | None" = None,
+            errors: tuple = (OSError, RuntimeError)) -> Iterator[None]:
+    """Raise a failed write of ``what`` as an :class:`OutputError` (h5py reports a full
+    disk as OSError or RuntimeError); ``record``'s files count as broken from then on."""
+    try:
+        yield
+    except OutputError:
+        raise
+    except errors as exc:
+        if record is not None:
+            record.broken = True
+        raise OutputError(f"cannot write {what}: {_reason(exc)}") from None
 
 
 class OutputPoints:
@@ -97,7 +134,12 @@ class RunRecord:
                       slice(b.offset, b.offset + b.n_cp)) for b in disc.beams]
         self._rows: list[np.ndarray] = []
         self.snapshots: list[Snapshot] = []
-        self.files = None if out_dir is None else _Files(self, out_dir, case_text, n_dof, resume)
+        self.broken = False  # a write failed: nothing more is written (the memory goes on)
+        self._disk_checked = -math.inf
+        self.files = None
+        if out_dir is not None:
+            with writing(f"the results in {out_dir}", self):
+                self.files = _Files(self, out_dir, case_text, n_dof, resume)
         if resume is not None and out_dir is not None:
             self._read_back(out_dir, resume)
 
@@ -129,20 +171,37 @@ class RunRecord:
         row = {"step": step, self.abscissa: parameter, **self.points.values(self.x(u)),
                **values, "newton_iters": iterations, "cutbacks": cutbacks, **extra}
         self._rows.append(np.array([float(row[c]) for c in self.columns]))
-        if self.files is not None:
-            self.files.history.write(row)
+        if self._writes():
+            with writing(self.out_dir / "history.csv", self):
+                self.files.history.write(row)
 
     def state(self, step: int, parameter: float, u, **extra) -> None:
         """Save a full state (results.h5; only with an output folder)."""
-        if self.files is not None:
-            self.files.states.write(step, parameter, u, **extra)
+        if self._writes():
+            with writing(self.out_dir / "results.h5", self):
+                self.files.states.write(step, parameter, u, **extra)
 
     def snapshot(self, parameter: float, u) -> None:
         """Keep the control points at this instant (and write a VTU file)."""
         x = self.x(u)
         self.snapshots.append(Snapshot(float(parameter), x))
-        if self.files is not None:
-            self.files.vtk.write(parameter, x)
+        if self._writes():
+            with writing(self.out_dir / "vtk", self):
+                self.files.vtk.write(parameter, x)
+
+    def _writes(self) -> bool:
+        """Whether the files take more (an output folder, no failed write, and room on
+        its disk: :data:`DISK_RESERVE`, checked at most every quarter of a second)."""
+        if self.files is None or self.broken:
+            return False
+        now = time.monotonic()
+        if now - self._disk_checked > 0.25:
+            self._disk_checked = now
+            if free_space(self.out_dir) < DISK_RESERVE:
+                self.broken = True
+                raise OutputError(f"cannot write the results in {self.out_dir}: its disk "
+                                  f"is full (less than {DISK_RESERVE // 2**20} MB free)")
+        return True
 
     def history(self) -> dict[str, np.ndarray]:
         """The history as columns."""
@@ -150,8 +209,16 @@ class RunRecord:
         return {c: table[:, k] for k, c in enumerate(self.columns)}
 
     def close(self) -> None:
-        """Close the files (they are complete after every step already)."""
-        if self.files is not None:
+        """Close the files (they are complete after every step already). After a failed
+        write only what can still be closed is (the error was reported once)."""
+        if self.files is None:
+            return
+        if self.broken:
+            for f in (self.files.history, self.files.states):
+                with suppress(OSError, RuntimeError):
+                    f.close()
+            return
+        with writing(f"the results in {self.out_dir}", self):
             self.files.close()
 
     def axes(self, x: np.ndarray) -> list[np.ndarray]:
@@ -176,8 +243,12 @@ class RunRecord:
         """Into out_dir/plots: shapes.png, points.png; dynamics also energies.png,
         snapshots.png (a grid of instants) and animation.gif (every snapshot, at most
         300)."""
-        if self.out_dir is None or not self.snapshots:
+        if self.out_dir is None or not self.snapshots or self.broken:
             return
+        with writing(self.out_dir / "plots", self, errors=(OSError,)):
+            self._plots()
+
+    def _plots(self) -> None:
         from beamcontact.plot import (
             animate,
             plot_energies,

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 import tomllib
+from contextlib import suppress
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -30,7 +31,7 @@ from beamcontact.io.case import Case, CaseError, parse_case
 from beamcontact.io.output_folder import claimed
 from beamcontact.io.results import read_last_state, write_summary
 from beamcontact.progress import Progress, ProgressInfo
-from beamcontact.record import RunRecord
+from beamcontact.record import OutputError, RunRecord, writing
 from beamcontact.setup.contact import obstacle_names
 from beamcontact.setup.start import (
     Prepared,
@@ -40,6 +41,7 @@ from beamcontact.setup.start import (
     static_engine,
 )
 from beamcontact.statics.driver import StaticStep, solve_static
+from beamcontact.stop_signals import stopped_by
 from beamcontact.summary import contact_summary, effective_settings, set_change_warning
 
 ENERGY_COLUMNS = ["E_strain", "E_gravity", "E_ext", "E_contact", "E_total", "min_gap"]
@@ -65,14 +67,28 @@ class _Tally:
         self.steps, self.reached, self.cutbacks = step, reached, cutbacks
         self.iterations += iterations
 
-    def interrupted(self, parameter: str) -> dict:
-        """The counters as the solvers' summary fields of an interrupted run."""
-        where = f"t = {self.reached:.6g} s" if parameter == "t" else \
+    def interrupted(self, parameter: str, exc: KeyboardInterrupt) -> dict:
+        """The counters as the solvers' summary fields of a run interrupted by ``exc``
+        (Ctrl-C, or SIGTERM/SIGHUP: :mod:`beamcontact.stop_signals`)."""
+        by = stopped_by(exc)
+        return {**self._counters(), "status": "interrupted",
+                "signal": None if by == "the user" else by,
+                "message": f"interrupted by {by} at {self._where(parameter)} after "
+                           f"{self.steps} steps; every accepted step is kept"}
+
+    def failed_output(self, parameter: str, exc: OSError) -> dict:
+        """The counters as the solvers' summary fields of a run whose results could not
+        be written (:class:`~beamcontact.record.OutputError`)."""
+        return {**self._counters(), "status": "output_failed",
+                "message": f"{exc}; stopped at {self._where(parameter)} after {self.steps} "
+                           f"steps; what was written before is kept"}
+
+    def _where(self, parameter: str) -> str:
+        return f"t = {self.reached:.6g} s" if parameter == "t" else \
             f"load factor {self.reached:.6g}"
-        return {"status": "interrupted",
-                "message": f"interrupted by the user at {where} after {self.steps} steps; "
-                           f"every accepted step is kept",
-                "steps": self.steps, "newton_iterations": self.iterations,
+
+    def _counters(self) -> dict:
+        return {"steps": self.steps, "newton_iterations": self.iterations,
                 "cutbacks": self.cutbacks, "solve_time_s": time.perf_counter() - self.start,
                 "compile_time_s": self.first_step_s or 0.0}
 
@@ -125,7 +141,15 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     model, disc, contact = prepared.model, prepared.disc, prepared.contact
     warnings = [] if restart else _check_initial_overlap(case, model, contact)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
-    summary, record = run(prepared, case_text, out_dir, progress, restart)
+    try:
+        summary, record = run(prepared, case_text, out_dir, progress, restart)
+    except OutputError as exc:  # before the first step: the summary says so, if it can
+        if out_dir is not None:
+            with suppress(OSError):
+                write_summary(out_dir / "summary.json", {
+                    "status": "output_failed", "message": f"{exc}; the run did not start",
+                    "steps": 0, "title": case.title, "kind": case.analysis.kind})
+        raise
     if (contact is not None and isinstance(contact.law, CoarseGrained)
             and summary.get("min_gap") is not None):
         res = contact_resolution(contact.elements, contact.law, summary["min_gap"])
@@ -142,7 +166,8 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
                     "n_elements": sum(b.mesh.n_elements for b in disc.beams),
                     "beamcontact_version": __version__})
     if out_dir is not None:
-        write_summary(out_dir / "summary.json", summary)
+        with writing(out_dir / "summary.json"):
+            write_summary(out_dir / "summary.json", summary)
     return summary, record
 
 
@@ -214,11 +239,28 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress,
                    "steps": result.steps, "newton_iterations": result.iterations,
                    "cutbacks": result.cutbacks, "final_load_factor": result.load_factor,
                    "solve_time_s": result.wall_time, "compile_time_s": result.compile_time}
-    except KeyboardInterrupt:
-        summary = {**tally.interrupted("load_factor"), "final_load_factor": tally.reached}
-    rec.close()
-    rec.plots()
+    except KeyboardInterrupt as exc:
+        summary = {**tally.interrupted("load_factor", exc), "final_load_factor": tally.reached}
+    except OutputError as exc:
+        summary = {**tally.failed_output("load_factor", exc),
+                   "final_load_factor": tally.reached}
+    _finish(rec, summary)
     return {**summary, "extremes": rec.extremes()}, rec
+
+
+def _finish(rec: RunRecord, summary: dict) -> None:
+    """Close the files and draw the figures; a failure of either ends the run as
+    "output_failed" (the summary says so, with what was kept). An interrupt while
+    drawing (a second Ctrl-C, or a signal) skips the figures, never the summary."""
+    try:
+        rec.close()
+        rec.plots()
+    except OutputError as exc:
+        if summary["status"] == "completed":
+            summary.update(status="output_failed",
+                           message=f"{exc}; the run completed and the rest is written")
+    except KeyboardInterrupt:
+        summary["figures"] = "not drawn: interrupted"
 
 
 def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, dict]:
@@ -371,10 +413,12 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
                    "cutbacks": start.cutbacks + result.cutbacks,
                    "rejections": result.rejections, "t_final": result.t,
                    "solve_time_s": result.wall_time, "compile_time_s": result.compile_time}
-    except KeyboardInterrupt:
-        summary = {**tally.interrupted("t"), "rejections": None, "t_final": tally.reached}
-    rec.close()
-    rec.plots()
+    except KeyboardInterrupt as exc:
+        summary = {**tally.interrupted("t", exc), "rejections": None, "t_final": tally.reached}
+    except OutputError as exc:
+        summary = {**tally.failed_output("t", exc), "rejections": None,
+                   "t_final": tally.reached}
+    _finish(rec, summary)
     summary["restarted_from_step"] = start.step0 if restart else None
     summary["mean_iterations_per_step"] = summary["newton_iterations"] / max(summary["steps"], 1)
     return {**summary, **_dynamic_results(rec, contact)}, rec

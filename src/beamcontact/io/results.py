@@ -7,11 +7,28 @@ the last accepted step.
 import csv
 import json
 import math
+import shutil
 import time
 from pathlib import Path
 
 import h5py
 import numpy as np
+
+# a run stops writing (status "output_failed") when less than this is free on the disk of
+# its folder: HDF5 that meets a full disk in the middle of a write leaves its file in a
+# state that it cannot close (a stack of errors and a crash at exit), so the run stops
+# while the files can still be closed whole
+DISK_RESERVE = 4 * 2**20
+
+
+def free_space(path: Path) -> int:
+    """Bytes free on the disk that holds ``path`` (a file or folder that exists)."""
+    return shutil.disk_usage(path).free
+
+
+class OutputError(OSError):
+    """The results could not be written (a full disk, a folder removed meanwhile, ...);
+    one line that names the file and the reason."""
 
 
 class HistoryWriter:
@@ -104,10 +121,13 @@ class StateWriter:
     """
 
     flush_seconds = 2.0
+    flush_bytes = 2**24  # and at least every 16 MB of queued states
 
     def __init__(self, path: Path, case_text: str, beams, n_dof: int, parameter_name: str,
                  resume_after_step: int | None = None):
+        self._path = path
         self._pending: list[dict] = []
+        self._pending_bytes = 0
         self._last_flush = time.monotonic()
         if resume_after_step is not None:
             self._h5 = h5py.File(path, "a")
@@ -142,14 +162,31 @@ class StateWriter:
         States reach the file in batches, at least every ``flush_seconds`` of wall time and
         on close (also after Ctrl-C); history.csv is written every step regardless.
         """
-        self._pending.append({"step": np.int64(step), "parameter": float(parameter),
-                              "u": np.asarray(u, float),
-                              **{k: np.asarray(v, float) for k, v in extra.items()}})
-        if time.monotonic() - self._last_flush > self.flush_seconds:
+        state = {"step": np.int64(step), "parameter": float(parameter),
+                 "u": np.asarray(u, float),
+                 **{k: np.asarray(v, float) for k, v in extra.items()}}
+        self._pending.append(state)
+        self._pending_bytes += sum(np.asarray(v).nbytes for v in state.values())
+        if (time.monotonic() - self._last_flush > self.flush_seconds
+                or self._pending_bytes > self.flush_bytes):
             self.flush()
 
     def flush(self) -> None:
-        """Write the queued states and flush the file."""
+        """Write the queued states and flush the file; an :class:`OutputError` (and the
+        queued states dropped) when the disk has no room for them and
+        :data:`DISK_RESERVE` besides, before HDF5 meets the full disk."""
+        full = None
+        if self._pending:
+            free = free_space(self._path)
+            if free < 2 * self._pending_bytes + DISK_RESERVE:
+                # the states that fit, in order (a restart continues from the last of
+                # them); the rest are dropped
+                sizes = np.cumsum([2 * sum(np.asarray(v).nbytes for v in p.values())
+                                   for p in self._pending])
+                fits = int(np.searchsorted(sizes, free - DISK_RESERVE, side="right"))
+                full = OutputError(f"cannot write {self._path}: its disk is full "
+                                   f"({free / 2**20:.1f} MB free)")
+                del self._pending[fits:]
         if self._pending:
             st = self._h5["states"]
             n, k = st["step"].shape[0], len(self._pending)
@@ -162,12 +199,17 @@ class StateWriter:
                 st[name][n:] = values
             self._pending.clear()
             self._h5.flush()
+        self._pending_bytes = 0
         self._last_flush = time.monotonic()
+        if full is not None:
+            raise full
 
     def close(self) -> None:
-        """Write what is queued and close the file."""
-        self.flush()
-        self._h5.close()
+        """Write what is queued and close the file (closed also when that fails)."""
+        try:
+            self.flush()
+        finally:
+            self._h5.close()
 
 
 def read_last_state(path: Path) -> tuple[str, dict[str, np.ndarray]]:
