@@ -178,3 +178,24 @@ def test_sigterm_and_sighup_stop_a_run_like_ctrl_c(tmp_path):
         assert rest.returncode == 0, rest.stderr
         done = json.loads((out / "summary.json").read_text(encoding="utf-8"))
         assert done["status"] == "completed" and done["t_final"] == 0.2
+
+
+def test_a_dense_tangent_larger_than_the_memory_is_refused_before_it_is_made(tmp_path,
+                                                                           monkeypatch):
+    """linear_solver = "dense" for more dofs than the machine holds (here a machine of
+    1 kB): exit 2 and one line that says what to change, nothing allocated or run."""
+    from typer.testing import CliRunner
+
+    import beamcontact.setup.start as start
+    from beamcontact.cli import app
+
+    monkeypatch.setattr(start, "physical_memory", lambda: 2**10)
+    raw = tomllib.loads(VIBRATION.read_text(encoding="utf-8"))
+    raw["solver"] = {"engine": "jax", "linear_solver": "dense"}
+    case = tmp_path / "dense.toml"
+    case.write_text(tomli_w.dumps(raw), encoding="utf-8")
+    result = CliRunner().invoke(app, ["run", str(case), "--out", str(tmp_path / "o"), "-q"])
+    assert result.exit_code == 2
+    assert "solver.linear_solver: the dense tangent of" in result.output
+    assert 'use linear_solver = "sparse"' in result.output
+    assert not (tmp_path / "o" / "history.csv").exists()

@@ -64,6 +64,36 @@ def prepare(case: Case) -> Prepared:
                     NewtonOptions(so.max_iterations, so.rtol, so.utol))
 
 
+# the dense tangent's bytes per entry in the JAX engine: the matrix, its LU and the
+# buffers XLA keeps of them
+DENSE_BYTES_PER_ENTRY = 3 * 8
+
+
+def physical_memory() -> int | None:
+    """This machine's memory in bytes (None where the system does not say)."""
+    import os
+
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
+def check_dense_memory(prepared: Prepared) -> None:
+    """Refuse, before anything is allocated, a dense tangent (``solver.linear_solver``
+    "dense", or "auto" on an accelerator) larger than this machine's memory, saying what
+    to change."""
+    model = prepared.model
+    memory = physical_memory()
+    need = DENSE_BYTES_PER_ENTRY * model.n_dof**2
+    if model.sparse or memory is None or need <= memory:
+        return
+    raise CaseError(
+        f"solver.linear_solver: the dense tangent of {model.n_dof} dofs needs about "
+        f"{need / 2**30:.1f} GB, more than this machine's {memory / 2**30:.1f} GB; use "
+        f"linear_solver = \"sparse\" (or \"auto\" on a CPU) or fewer elements")
+
+
 def static_engine(prepared: Prepared):
     """The engine of load stepping (:func:`choose_engine`):
     :class:`~beamcontact.statics.native_step.NativeStatics` or
@@ -75,6 +105,7 @@ def static_engine(prepared: Prepared):
         return NativeStatics(prepared.model, contact, prepared.options, prepared.length)
     from beamcontact.statics.step import JaxStatics
 
+    check_dense_memory(prepared)
     return JaxStatics(prepared.model, contact, prepared.options, prepared.length)
 
 
@@ -106,6 +137,7 @@ def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
     from beamcontact.dynamics.hht import initial_state
     from beamcontact.dynamics.step import JaxEngine
 
+    check_dense_memory(prepared)
     engine = JaxEngine(model, contact, an.alpha, prepared.options, prepared.length, an.dt)
     state = None
     if initial:  # from the engine's device copies of the model and the contact points
