@@ -161,7 +161,10 @@ def simulate(case: Case | str | Path, out: str | Path | None = None, *,
     if not jax_cache_dir():
         enable_compilation_cache()
     if isinstance(case, Case):
+        # validated again as a case file is: a copy made with model_copy(update=...)
+        # skips pydantic's checks, and no case that a file could not hold runs
         text = case.to_toml()
+        case = Case.from_toml(text)
     else:
         case, text = read_case_file(case)
     out_dir = None if out is None else Path(out)

@@ -117,6 +117,17 @@ def _check_out_dir(path: Path) -> None:
         _fail(f"--out {path}: cannot use this output folder: {problem}", 2)
 
 
+def _figure_format(path: Path) -> None:
+    """Exit with code 2, naming the formats there are, unless matplotlib writes figures
+    in the format of ``path``'s suffix."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    if path.suffix.lstrip(".").lower() not in formats:
+        _fail(f"--out {path}: unknown figure format {path.suffix or '(no suffix)'!r}; give a "
+              f"file name ending in one of {', '.join('.' + f for f in formats)}", 2)
+
+
 def _write_target(path: Path) -> None:
     """Make sure the file ``--out path`` can be written (its folder is created), else exit
     with code 2 naming the file and the reason."""
@@ -268,6 +279,8 @@ def compare(
         curves.append((labels[k] if labels else run_dir.name, h))
     if len({"t" in h for _, h in curves}) > 1:
         _fail("cannot overlay static (load_factor) and dynamic (t) runs", 2)
+    if not out.is_dir():  # a folder in the way is _write_target's to say
+        _figure_format(out)
     _write_target(out)
     try:
         plot_run_overlay(curves, column, out)

@@ -123,6 +123,9 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
             client = Client(scheduler, timeout="10s")
         except (OSError, TimeoutError) as exc:
             raise CaseError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+        except ValueError as exc:  # distributed's parsing of the address
+            raise CaseError(f"--scheduler {scheduler}: not a scheduler address ({exc}); "
+                            f"give tcp://HOST:PORT") from None
         with client:
             yield client
         return

@@ -20,6 +20,7 @@ from beamcontact.io.case_tables import (  # noqa: F401
     Analysis,
     Arc,
     Beam,
+    CaseError,
     Circle,
     CircleSection,
     Contact,
@@ -37,10 +38,6 @@ from beamcontact.io.case_tables import (  # noqa: F401
     _Strict,
     at_fraction,
 )
-
-
-class CaseError(ValueError):
-    """Invalid case: the message names the offending key."""
 
 
 class Case(_Strict):
@@ -209,6 +206,9 @@ def read_case_file(path: str | Path) -> tuple[Case, str]:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise CaseError(f"{path}: cannot read the case file ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise CaseError(f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at "
+                        f"position {exc.start}); save the case file as UTF-8") from None
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -14,6 +14,7 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    ValidationError,
     ValidationInfo,
     field_validator,
     model_validator,
@@ -23,8 +24,43 @@ if TYPE_CHECKING:
     from beamcontact.contact.laws import ContactLaw
 
 
-class _Strict(BaseModel):
+class CaseError(ValueError):
+    """Invalid case: the message names the offending key."""
+
+
+class _TableMeta(type(BaseModel)):
+    """Turns the ValidationError of a table built in Python (``Material(E=-1.0)``) into a
+    :class:`CaseError` naming the table and the key, as a case file's is. Only a call of
+    the class comes here: the tables inside a validated case are made by pydantic."""
+
+    def __call__(cls, *args: Any, **kwargs: Any):
+        try:
+            return super().__call__(*args, **kwargs)
+        except ValidationError as exc:
+            errors = exc.errors()
+            more = f" (and {len(errors) - 1} more problem(s))" if len(errors) > 1 else ""
+            raise CaseError(_constructor_error(cls.__name__, errors[0]) + more) from None
+
+
+class _Strict(BaseModel, metaclass=_TableMeta):
+    """A table of the case: unknown keys, NaN and infinities are errors."""
+
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+def _constructor_error(table: str, err: dict) -> str:
+    """One line for an invalid value given to a table's constructor."""
+    if err["type"] == "cross_check":  # a check across tables names its own keys
+        return err["msg"]
+    key = ".".join([table, *(str(k) for k in err["loc"])])
+    if err["type"] == "missing":
+        return f"{key}: required key is missing"
+    if err["type"] == "extra_forbidden":
+        return f"{key}: unknown key"
+    msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
+    if "got" in msg or not err["loc"]:
+        return f"{key}: {msg}"
+    return f"{key}: {msg}, got {err['input']!r}"
 
 
 def _as_list(value: Any) -> Any:

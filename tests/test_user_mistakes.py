@@ -1,0 +1,72 @@
+"""A user's mistake is one line and an exit code, never a traceback (issue 23, item 4),
+from the command line and from the Python API (one error type, CaseError, naming the
+key, whether a case comes from TOML, a constructor or model_copy)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import beamcontact as bc
+
+REPO = Path(__file__).resolve().parents[1]
+VIBRATION = REPO / "examples" / "pinned_beam_vibration" / "case.toml"
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "beamcontact.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=300)
+
+
+def _one_line(proc, code: int, *parts: str) -> None:
+    assert proc.returncode == code, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and all(p in lines[0] for p in parts), proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_a_case_file_that_is_not_utf8(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(VIBRATION.read_text(encoding="utf-8").replace(
+        "Pinned-pinned", "Caf\u00e9").encode("latin-1"))
+    for command in ("check", "run"):
+        _one_line(_cli(command, path, "--out", tmp_path / "o") if command == "run"
+                  else _cli(command, path), 2, str(path), "not UTF-8 text (byte 0xe9")
+    with pytest.raises(bc.CaseError, match="not UTF-8 text"):
+        bc.load_case(path)
+
+
+def test_compare_into_an_unknown_figure_format(tmp_path):
+    run = tmp_path / "run"
+    short = tmp_path / "case.toml"
+    short.write_text(VIBRATION.read_text(encoding="utf-8").replace(
+        "t_end = 0.5", "t_end = 0.003"), encoding="utf-8")
+    assert _cli("run", short, "--out", run, "-q").returncode == 0
+    _one_line(_cli("compare", run, "--point", "mid", "--out", tmp_path / "x.xyz"), 2,
+              "x.xyz: unknown figure format '.xyz'", ".png")
+
+
+def test_sweep_with_a_malformed_scheduler_address(tmp_path):
+    proc = _cli("sweep", VIBRATION, "--set", "analysis.t_end=0.001", "--out", tmp_path / "s",
+                "--scheduler", "notaurl", "-q")
+    _one_line(proc, 2, "--scheduler notaurl: not a scheduler address")
+
+
+def test_the_api_raises_case_errors_naming_the_key(tmp_path):
+    with pytest.raises(bc.CaseError, match=r"^Material\.E: must be greater than 0, got -1"):
+        bc.Material(E=-1.0, density=1000.0)
+    case = bc.load_case(VIBRATION)
+    # model_copy skips pydantic's checks; simulate validates what it is given
+    backwards = case.model_copy(update={"analysis": case.analysis.model_copy(
+        update={"dt": -1e-3})})
+    with pytest.raises(bc.CaseError, match=r"^analysis\.dt: must be greater than 0"):
+        bc.simulate(backwards)
+    no_elements = case.model_copy(update={"beams": [case.beams[0].model_copy(
+        update={"elements": 0})]})
+    with pytest.raises(bc.CaseError, match=r"^beams\[0\] \(beam\)\.elements: must be"):
+        bc.simulate(no_elements)
+    a_file = tmp_path / "a_file"
+    a_file.write_text("not a folder", encoding="utf-8")
+    with pytest.raises(bc.CaseError, match="cannot create this output folder"):
+        bc.simulate(case, out=a_file)
