@@ -95,3 +95,42 @@ def test_a_damaged_saved_program_is_exported_afresh(cache):
     out = persistent_jit(_energy, static_argnames=("n",))(*_args(0.01), n=2)
     np.testing.assert_array_equal(np.asarray(out["x"]), np.asarray(reference["x"]))
     assert saved.read_bytes() != b"not a program"  # written again
+
+
+class _Alarm:
+    """What a tampered cache file would make pickle build: code that runs on loading."""
+
+    ran = False
+
+    def __reduce__(self):
+        return (_Alarm.ring, ())
+
+    @staticmethod
+    def ring():
+        _Alarm.ran = True
+
+
+def test_the_cache_holds_data_never_code(cache):
+    """The output tree is JSON naming builtin containers and this package's classes: a
+    pickle put in its place (which would run code when unpickled) is never unpickled,
+    and the file is written afresh; a tree naming a class of another package is refused."""
+    import pickle
+
+    reference = jax.jit(_energy, static_argnames=("n",))(*_args(0.01), n=2)
+    persistent_jit(_energy, static_argnames=("n",))(*_args(0.01), n=2)
+    (tree,) = cache.glob("*.tree")
+    tree.write_bytes(pickle.dumps(_Alarm()))
+    out = persistent_jit(_energy, static_argnames=("n",))(*_args(0.01), n=2)
+    assert not _Alarm.ran
+    np.testing.assert_array_equal(np.asarray(out["x"]), np.asarray(reference["x"]))
+    assert tree.read_bytes().startswith(b"{")  # JSON again
+    # this package's pytrees go through the JSON form and back
+    from beamcontact.assembly.model import LoadState
+    from beamcontact.dynamics.hht import DynState
+
+    state = DynState(0.0, 1.0, 2.0, 3.0, 4.0, LoadState(5.0, 6.0))
+    treedef = jax.tree_util.tree_structure((state, None, {"b": 1, "a": [2]}))
+    assert _persistent.tree_from_data(_persistent.tree_to_data(treedef)) == treedef
+    foreign = {"type": "os:system", "aux": None, "children": []}
+    with pytest.raises(ValueError, match="not a node of this package"):
+        _persistent.tree_from_data(foreign)

@@ -15,14 +15,20 @@ static arguments. Programs JAX cannot serialise (host callbacks: the sparse tang
 signatures whose structure has no stable text (an object shown by its address), are
 simply jitted as usual. With the cache off (``BEAMCONTACT_CACHE_DIR=""``) or before the
 command line has switched it on, this is plain ``jax.jit``.
+
+The cache holds data, never code: the program is JAX's serialised StableHLO and its output
+tree is JSON (:func:`tree_to_data`), which names builtin containers and classes of this
+package only; nothing is unpickled. A damaged or foreign file is ignored and written
+afresh.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import importlib
+import json
 import os
-import pickle
 from pathlib import Path
 
 from beamcontact._jax import jax
@@ -103,7 +109,7 @@ class _Persistent:
         """(exported, output tree) saved at path, or None."""
         try:
             return (jax.export.deserialize(bytearray(path.with_suffix(".hlo").read_bytes())),
-                    pickle.loads(path.with_suffix(".tree").read_bytes()))
+                    tree_from_data(json.loads(path.with_suffix(".tree").read_text())))
         except Exception:  # noqa: BLE001 (missing, damaged or foreign: export afresh)
             return None
 
@@ -123,7 +129,8 @@ class _Persistent:
 
         try:
             exported = jax.export.export(jax.jit(flat))(*specs)
-            files = {".tree": pickle.dumps(out_tree[0]), ".hlo": exported.serialize()}
+            files = {".tree": json.dumps(tree_to_data(out_tree[0])).encode(),
+                     ".hlo": exported.serialize()}
             program = (exported, out_tree[0])
         except Exception:  # noqa: BLE001 (what export rejects is JAX's to say)
             files, program = {".unsupported": b""}, None
@@ -137,6 +144,60 @@ class _Persistent:
         except OSError:
             pass  # a read-only or full cache: the program is still used in this process
         return program
+
+
+# the containers a saved output tree may hold besides the package's own pytree classes
+_BUILTIN_NODES = {"tuple": tuple, "list": list, "dict": dict, "None": type(None)}
+
+
+def tree_to_data(treedef) -> dict | None:
+    """A program's output tree as JSON data (None for a leaf): each node's type (a builtin
+    container, or a class of this package by module and name), its auxiliary data (the
+    static fields; JSON values, tuples marked) and its children."""
+    node = treedef.node_data()
+    if node is None:
+        return None
+    kind, aux = node
+    name = next((n for n, t in _BUILTIN_NODES.items() if t is kind),
+                f"{kind.__module__}:{kind.__qualname__}")
+    return {"type": name, "aux": _aux_to_data(aux),
+            "children": [tree_to_data(c) for c in treedef.children()]}
+
+
+def tree_from_data(data):
+    """The tree of :func:`tree_to_data`. Only builtin containers and classes of this
+    package are made: a damaged or foreign file raises (and the program is exported
+    afresh), it never names code to run."""
+    if data is None:
+        return jax.tree_util.tree_structure(0)
+    name = data["type"]
+    kind = _BUILTIN_NODES.get(name)
+    if kind is None:
+        module, _, qualname = name.partition(":")
+        if module.split(".")[0] != __package__ or "." in qualname:
+            raise ValueError(f"not a node of this package: {name!r}")
+        kind = getattr(importlib.import_module(module), qualname)
+    children = [tree_from_data(c) for c in data["children"]]
+    return jax.tree_util.PyTreeDef.from_node_data_and_children(
+        jax.tree_util.default_registry, (kind, _aux_from_data(data["aux"])), children)
+
+
+def _aux_to_data(aux):
+    if isinstance(aux, tuple):
+        return {"tuple": [_aux_to_data(a) for a in aux]}
+    if isinstance(aux, list):
+        return [_aux_to_data(a) for a in aux]
+    if aux is None or isinstance(aux, bool | int | float | str):
+        return aux
+    raise TypeError(f"auxiliary data {aux!r} has no JSON form")
+
+
+def _aux_from_data(data):
+    if isinstance(data, dict):
+        return tuple(_aux_from_data(a) for a in data["tuple"])
+    if isinstance(data, list):
+        return [_aux_from_data(a) for a in data]
+    return data
 
 
 def persistent_jit(fn=None, *, static_argnames: tuple[str, ...] = ()):
