@@ -248,3 +248,52 @@ def test_crashing_member_is_recorded(tmp_path, monkeypatch):
                          scheduler=cluster.scheduler_address)
     assert [r["status"] for r in rows] == ["completed", "crashed"]
     assert "worker lost" in rows[1]["message"]
+
+
+_LISTENERS = """
+import json, urllib.error, urllib.request
+from beamcontact.sweep import dask_client
+
+def get(port, route):
+    try:
+        return urllib.request.urlopen(f"http://127.0.0.1:{port}/{route}", timeout=10).status
+    except urllib.error.HTTPError as exc:
+        return exc.code
+
+if __name__ == "__main__":
+    found = {}
+    for dashboard in (False, True):
+        with dask_client(1, None, dashboard) as client:
+            info = client.scheduler_info()
+            http = client.run_on_scheduler(lambda dask_scheduler: [
+                s.getsockname()[:2] for s in dask_scheduler.http_server._sockets.values()])
+            port = info["services"]["dashboard"]
+            found[str(dashboard)] = {"scheduler": info["address"],
+                                     "workers": list(info["workers"]), "http": http,
+                                     "status": get(port, "status")}
+    print(json.dumps(found))
+"""
+
+
+def test_a_local_cluster_listens_on_loopback_and_serves_no_dashboard_unless_asked(
+        tmp_path):
+    """Every listener of a sweep's local cluster is on 127.0.0.1; without --dashboard the
+    scheduler's HTTP server (health routes only) is on a port the system picks, so two
+    sweeps never compete for 8787, and it serves no dashboard page."""
+    import json
+    import subprocess
+    import sys
+
+    script = tmp_path / "listeners.py"  # a file: the workers' processes import __main__
+    script.write_text(_LISTENERS, encoding="utf-8")
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                         check=True, timeout=300)
+    found = json.loads(out.stdout.strip().splitlines()[-1])
+    for dashboard, seen in found.items():
+        addresses = [seen["scheduler"], *seen["workers"]]
+        assert all(a.startswith("tcp://127.0.0.1:") for a in addresses), seen
+        assert all(host == "127.0.0.1" for host, _ in seen["http"]), seen
+        if dashboard == "False":
+            assert all(port != 8787 for _, port in seen["http"]) and seen["status"] == 404
+        else:
+            assert seen["status"] == 200

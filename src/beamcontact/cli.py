@@ -307,6 +307,9 @@ def sweep(
     scheduler: Annotated[str | None, typer.Option(
         "--scheduler", help="Address of an existing Dask scheduler (tcp://HOST:PORT) "
         "instead of a local cluster; its workers need beamcontact and must see --out.")] = None,
+    dashboard: Annotated[bool, typer.Option(
+        "--dashboard", help="Serve Dask's dashboard of the local cluster at "
+        "http://127.0.0.1:8787 (else no dashboard; every listener is on 127.0.0.1).")] = False,
     dry_run: Annotated[bool, typer.Option(
         "--dry-run", help="List the runs and exit.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress display.")] = False,
@@ -341,12 +344,13 @@ def sweep(
     _check_out_dir(out)
     n_workers = workers or max(1, min(os.cpu_count() or 1, len(members)))
     rows = _sweep_with_progress(members, out, [p.name for p in parsed.output.points],
-                                n_workers, scheduler, show=not quiet)
+                                n_workers, scheduler, show=not quiet, dashboard=dashboard)
     _report_sweep(rows, out)
 
 
 def _sweep_with_progress(members, out: Path, points: list[str], workers: int,
-                         scheduler: str | None, *, show: bool) -> list[dict]:
+                         scheduler: str | None, *, show: bool,
+                         dashboard: bool = False) -> list[dict]:
     """Run the sweep under its progress display (unless not ``show``); return sweep.csv's rows.
 
     Exits with code 2 for a member the runner rejects and 130 on Ctrl-C (finished members
@@ -359,7 +363,7 @@ def _sweep_with_progress(members, out: Path, points: list[str], workers: int,
     try:
         with SweepProgress(len(members), show) as progress:
             return run_sweep(members, out, points, workers=workers, scheduler=scheduler,
-                             events=progress.events())
+                             events=progress.events(), dashboard=dashboard)
     except CaseError as exc:
         _fail(str(exc), 2)
     except KeyboardInterrupt:

@@ -114,8 +114,15 @@ def _run_on_worker(member: Member, run_dir: str) -> dict:
 
 
 @contextmanager
-def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
-    """A client of an existing scheduler, or of a local cluster started and stopped here."""
+def dask_client(workers: int, scheduler: str | None,
+                dashboard: bool = False) -> Iterator[Any]:
+    """A client of an existing scheduler, or of a local cluster started and stopped here.
+
+    A local cluster listens on 127.0.0.1 only, on ports the system picks (the scheduler,
+    the workers and their nannies, each with an HTTP server of health routes); with
+    ``dashboard`` the scheduler also serves Dask's dashboard at 127.0.0.1:8787 (or the
+    next free port), else it serves none.
+    """
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
@@ -129,8 +136,12 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
         with client:
             yield client
         return
+    # dashboard_address=None would still start the scheduler's HTTP server at 8787
+    http = {"dashboard": dashboard,
+            "dashboard_address": "127.0.0.1:8787" if dashboard else "127.0.0.1:0"}
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
+                      host="127.0.0.1", scheduler_port=0, dashboard_address=None,
+                      scheduler_kwargs=http, silence_logs=logging.ERROR) as cluster, \
             Client(cluster) as client:
         yield client
 
@@ -160,7 +171,7 @@ def member_row(member: Member, summary: dict | None, point_names: list[str]) -> 
 
 def run_sweep(members: list[Member], out_dir: Path, point_names: list[str], *,
               workers: int = 1, scheduler: str | None = None,
-              events: SweepEvents | None = None) -> list[dict]:
+              events: SweepEvents | None = None, dashboard: bool = False) -> list[dict]:
     """Run the members not yet complete in ``out_dir``; write sweep.csv and the overlays.
 
     Returns the rows of sweep.csv in member order. On KeyboardInterrupt the unfinished
@@ -182,7 +193,8 @@ def run_sweep(members: list[Member], out_dir: Path, point_names: list[str], *,
     events.started(len(todo), len(members) - len(todo))
     if todo:
         try:
-            _execute(todo, out_dir, workers, scheduler, events, summaries, table)
+            _execute(todo, out_dir, workers, scheduler, events, summaries, table,
+                     dashboard)
         except KeyboardInterrupt:
             for m in todo:
                 if summaries[m.name] is None:
@@ -195,10 +207,11 @@ def run_sweep(members: list[Member], out_dir: Path, point_names: list[str], *,
     return rows
 
 
-def _execute(todo, out_dir, workers, scheduler, events, summaries, table) -> None:
+def _execute(todo, out_dir, workers, scheduler, events, summaries, table,
+             dashboard: bool = False) -> None:
     from distributed import as_completed
 
-    with dask_client(workers, scheduler) as client:
+    with dask_client(workers, scheduler, dashboard) as client:
         client.subscribe_topic(
             PROGRESS_TOPIC,
             lambda event: events.progress(event[1]["run"], event[1]["fraction"],
