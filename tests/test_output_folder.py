@@ -199,3 +199,68 @@ def test_a_dense_tangent_larger_than_the_memory_is_refused_before_it_is_made(tmp
     assert "solver.linear_solver: the dense tangent of" in result.output
     assert 'use linear_solver = "sparse"' in result.output
     assert not (tmp_path / "o" / "history.csv").exists()
+
+
+def test_a_restarted_run_counts_the_whole_run(tmp_path):
+    """Stopped by SIGTERM in the first impact and continued with --restart, the bundled
+    IPIP drop ends with the history of an uninterrupted run byte for byte, and its
+    summary counts the whole run as that one's does: steps, Newton iterations (of every
+    attempt), cut-backs and rejections by kind, and the message's step count."""
+    import json
+    import signal
+
+    raw = tomllib.loads((REPO / "examples" / "free_fall" / "case_ipip.toml").read_text(
+        encoding="utf-8"))
+    raw["analysis"]["t_end"] = 0.85
+    case = tmp_path / "drop.toml"
+    case.write_text(tomli_w.dumps(raw), encoding="utf-8")
+    whole, parts = tmp_path / "whole", tmp_path / "parts"
+    assert _cli("run", case, "--out", whole, "-q").returncode == 0
+    stopped = subprocess.run(
+        [sys.executable, "-c", _SIGNALLED.replace("step == 20", "step == 900"), str(case),
+         str(parts), str(int(signal.SIGTERM))], capture_output=True, text=True, timeout=600)
+    assert stopped.returncode == 143, stopped.stderr
+    assert _cli("run", case, "--out", parts, "-q", "--restart").returncode == 0
+    assert (whole / "history.csv").read_bytes() == (parts / "history.csv").read_bytes()
+    a, b = (json.loads((d / "summary.json").read_text(encoding="utf-8"))
+            for d in (whole, parts))
+    assert b["restarted_from_step"] is not None
+    assert a["rejections"], "the impact has rejected attempts to count"
+    for key in ("steps", "newton_iterations", "cutbacks", "rejections", "message"):
+        assert a[key] == b[key], key
+
+
+def test_restart_with_a_damaged_or_missing_history_or_series(tmp_path):
+    """--restart after a damaged history.csv (a junk line) or a missing one: exit 2 and
+    one line, the folder as it was; a last line cut short (a kill in mid-write) and a
+    missing or damaged beams.pvd are not in the way: the run goes on, the ParaView
+    series made again from results.h5, one VTU file per snapshot and every one listed."""
+    import re
+
+    case = _case(tmp_path, 0.01)
+    longer = _case(tmp_path, 0.016, "longer.toml")
+    out = tmp_path / "out"
+    assert _cli("run", case, "--out", out, "-q").returncode == 0
+    history = out / "history.csv"
+    good = history.read_text(encoding="utf-8")
+    lines = good.splitlines(keepends=True)
+    history.write_text("".join(lines[:3] + ["junk\n"] + lines[3:]), encoding="utf-8")
+    before = _files(out)
+    damaged = _cli("run", longer, "--out", out, "-q", "--restart")
+    _one_line(damaged, "--restart:", "history.csv is damaged (line 4 has 1 values",
+              "without --restart")
+    assert damaged.returncode == 2 and _files(out) == before
+    history.unlink()
+    missing = _cli("run", longer, "--out", out, "-q", "--restart")
+    _one_line(missing, "--restart:", "history.csv is missing")
+    history.write_text(good + good.splitlines()[-1][:7], encoding="utf-8")  # cut short
+    for pvd, target, snapshots in (("missing", longer, 9),  # t = 0, 2, ..., 16 ms
+                                   ("damaged", _case(tmp_path, 0.02, "l2.toml"), 11)):
+        (out / "beams.pvd").unlink()
+        if pvd == "damaged":
+            (out / "beams.pvd").write_text("<VTKFile", encoding="utf-8")
+        proc = _cli("run", target, "--out", out, "-q", "--restart")
+        assert proc.returncode == 0, proc.stderr
+        listed = re.findall(r'file="([^"]+)"', (out / "beams.pvd").read_text())
+        on_disk = sorted(f"vtk/{p.name}" for p in (out / "vtk").iterdir())
+        assert listed == on_disk and len(listed) == snapshots, pvd

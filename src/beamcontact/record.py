@@ -95,6 +95,8 @@ class _Files:
                  resume: tuple[int, float] | None):
         out_dir.mkdir(parents=True, exist_ok=True)
         (out_dir / "plots").mkdir(exist_ok=True)
+        # the effective case, as a sweep's runs have it
+        (out_dir / "case.toml").write_text(case_text, encoding="utf-8")
         step = None if resume is None else resume[0]
         self.history = HistoryWriter(out_dir / "history.csv", record.columns, step)
         self.states = StateWriter(out_dir / "results.h5", case_text, record.disc.beams, n_dof,
@@ -142,6 +144,9 @@ class RunRecord:
                 self.files = _Files(self, out_dir, case_text, n_dof, resume)
         if resume is not None and out_dir is not None:
             self._read_back(out_dir, resume)
+            if not self.files.vtk.resumed:  # beams.pvd missing or damaged: from results.h5
+                for snap in self.snapshots:
+                    self.files.vtk.write(snap.parameter, snap.x)
 
     def _read_back(self, out_dir: Path, resume: tuple[int, float]) -> None:
         """Rows and snapshots of the run being continued (already truncated to ``resume``)."""

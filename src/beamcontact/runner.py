@@ -23,7 +23,7 @@ from beamcontact.assembly.model import LoadState, Model
 from beamcontact.contact.laws import CoarseGrained
 from beamcontact.contact.overlap import describe, initial_overlaps, obstacle_overlaps
 from beamcontact.contact.resolution import contact_resolution, resolution_warning
-from beamcontact.dynamics.control import EnergyAccount, total_energy
+from beamcontact.dynamics.control import KINDS, EnergyAccount, total_energy
 from beamcontact.dynamics.driver import DynamicStep, solve_dynamic
 from beamcontact.dynamics.hht import DynState
 from beamcontact.dynamics.report import DIAGNOSTICS
@@ -60,12 +60,19 @@ class _Tally:
     cutbacks: int = 0
     reached: float = 0.0
     first_step_s: float | None = None  # compilation and the first step
+    rejected: np.ndarray | None = None  # by kind (dynamics)
 
-    def accept(self, step: int, reached: float, iterations: int, cutbacks: int) -> None:
+    def accept(self, step: int, reached: float, iterations: int, cutbacks: int,
+               rejected: np.ndarray | None = None) -> None:
         if self.first_step_s is None:
             self.first_step_s = time.perf_counter() - self.start
         self.steps, self.reached, self.cutbacks = step, reached, cutbacks
         self.iterations += iterations
+        self.rejected = rejected
+
+    def rejections(self) -> dict | None:
+        """The rejected attempts by kind so far (None: not counted)."""
+        return None if self.rejected is None else _rejections(self.rejected, {})
 
     def interrupted(self, parameter: str, exc: KeyboardInterrupt) -> dict:
         """The counters as the solvers' summary fields of a run interrupted by ``exc``
@@ -136,8 +143,6 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
         raise CaseError("a restart needs the output folder of the run to continue")
     wall0 = time.perf_counter()
     prepared = prepare(case)
-    if out_dir is not None:  # the effective case, as a sweep's runs have it
-        (out_dir / "case.toml").write_text(case_text, encoding="utf-8")
     model, disc, contact = prepared.model, prepared.disc, prepared.contact
     warnings = [] if restart else _check_initial_overlap(case, model, contact)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
@@ -248,6 +253,15 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress,
     return {**summary, "extremes": rec.extremes()}, rec
 
 
+def _rejections(before: np.ndarray, since: dict) -> dict:
+    """The rejected attempts by kind of the whole run: those before a restart and those
+    since (the kinds that occurred)."""
+    total = {k: int(n) for k, n in zip(KINDS, before, strict=True)}
+    for k, n in since.items():
+        total[k] += n
+    return {k: n for k, n in total.items() if n > 0}
+
+
 def _finish(rec: RunRecord, summary: dict) -> None:
     """Close the files and draw the figures; a failure of either ends the run as
     "output_failed" (the summary says so, with what was kept). An interrupt while
@@ -274,6 +288,7 @@ def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, d
                         f"another run writing it?") from None
     stored = parse_case(tomllib.loads(stored_text))
     _same_model(stored, case)
+    _check_history(out_dir / "history.csv")
     if "v" not in last or last["u"].shape != (model.n_dof,):
         raise CaseError(f"--restart: {path} does not hold a dynamic run of this case")
     if "energy_account" not in last:
@@ -283,6 +298,30 @@ def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, d
                      LoadState(np.asarray(last["load_theta"]),
                                np.asarray(last["load_tangent"])))
     return state, last
+
+
+def _check_history(path: Path) -> None:
+    """Refuse, in one line, to continue a run whose history.csv is missing or damaged
+    (its rows cannot be made again from results.h5, which holds states, not energies)."""
+    again = "run the case again without --restart (with --overwrite)"
+    if not path.is_file():
+        raise CaseError(f"--restart: {path} is missing, so the run cannot be continued; "
+                        f"{again}")
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+        header = lines[0].split(",") if lines else []
+        # the last line may be a write cut short by a kill (it follows the last saved
+        # state, and is dropped); any other line must be whole
+        for line_no, line in enumerate(lines[1:-1], start=2):
+            values = line.split(",")
+            if len(values) != len(header):
+                raise ValueError(f"line {line_no} has {len(values)} values, not "
+                                 f"{len(header)}")
+            int(values[0])
+            [float(v) for v in values[1:]]
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise CaseError(f"--restart: {path} is damaged ({exc}), so the run cannot be "
+                        f"continued; {again}") from None
 
 
 def _account_record(diag: dict) -> np.ndarray:
@@ -335,20 +374,23 @@ class _Start:
     state: DynState
     step0: int
     dt_start: float
-    iterations: int
+    iterations: int  # Newton iterations of every attempt
     cutbacks: int
+    rejected: np.ndarray  # rejected attempts by kind (dynamics/control.py, KINDS)
     account: EnergyAccount
     rec: RunRecord
 
 
-def _save(rec: RunRecord, s: DynamicStep, iterations_total: int) -> None:
-    """One accepted step into history.csv and results.h5 (with what a restart needs)."""
+def _save(rec: RunRecord, s: DynamicStep, iterations_total: int,
+          rejections_total: np.ndarray) -> None:
+    """One accepted step into history.csv and results.h5 (with what a restart needs: the
+    state, the step to try next, the energy account and the run's counters so far)."""
     st = s.state
     rec.row(s.step, s.t, st.u, s.diagnostics, s.iterations, s.cutbacks, dt=s.dt)
     rec.state(s.step, s.t, st.u, v=st.v, a=st.a, f_pot=st.f_pot,
               load_theta=st.load_state.theta, load_tangent=st.load_state.tangent, dt=s.dt,
               dt_next=s.dt_next, iterations_total=iterations_total, cutbacks_total=s.cutbacks,
-              energy_account=_account_record(s.diagnostics))
+              rejections_total=rejections_total, energy_account=_account_record(s.diagnostics))
 
 
 def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_Start, object]:
@@ -365,8 +407,10 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
         step0 = int(last["step"])
         rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
                         DYNAMIC_COLUMNS, resume=(step0, float(state.t)))
+        # results.h5 of a run before the rejections were kept counts none of them
+        rejected = np.asarray(last.get("rejections_total", np.zeros(len(KINDS))), float)
         return _Start(state, step0, float(last["dt_next"]), int(last["iterations_total"]),
-                      int(last["cutbacks_total"]),
+                      int(last["cutbacks_total"]), rejected,
                       _account_from_record(last["energy_account"]), rec), begin
     state = begin.state
     rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
@@ -375,10 +419,10 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
     diag0 = begin.engine.energies(state, first)
     diag0 = {**diag0, "E_total": total_energy(diag0), "error": 0.0, "E_dissipated": 0.0,
              "E_set_change": 0.0}
-    _save(rec, DynamicStep(0, 0.0, 0.0, an.dt, state, 0, 0, diag0), 0)
+    _save(rec, DynamicStep(0, 0.0, 0.0, an.dt, state, 0, 0, diag0), 0, np.zeros(len(KINDS)))
     rec.snapshot(0.0, state.u)
-    return _Start(state, 0, an.dt, 0, 0, _account_from_record(_account_record(diag0)),
-                  rec), begin
+    return _Start(state, 0, an.dt, 0, 0, np.zeros(len(KINDS)),
+                  _account_from_record(_account_record(diag0)), rec), begin
 
 
 def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
@@ -390,12 +434,14 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
     rec = start.rec
     next_snapshot = [np.floor(float(start.state.t) / interval + 1e-9) * interval + interval]
     tally = _Tally(steps=start.step0, iterations=start.iterations, cutbacks=start.cutbacks,
-                   reached=float(start.state.t))
+                   reached=float(start.state.t), rejected=start.rejected)
 
     def on_step(s: DynamicStep) -> None:
         s = replace(s, cutbacks=start.cutbacks + s.cutbacks)
-        tally.accept(s.step, s.t, s.iterations, s.cutbacks)
-        _save(rec, s, tally.iterations)
+        rejected = start.rejected + np.asarray(s.rejected or np.zeros(len(KINDS)))
+        tally.accept(s.step, s.t, start.iterations + s.iterations_total - tally.iterations,
+                     s.cutbacks, rejected)
+        _save(rec, s, tally.iterations, rejected)
         if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
             rec.snapshot(s.t, s.state.u)
             next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval
@@ -411,12 +457,14 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
                    "steps": start.step0 + result.steps,
                    "newton_iterations": start.iterations + result.iterations,
                    "cutbacks": start.cutbacks + result.cutbacks,
-                   "rejections": result.rejections, "t_final": result.t,
+                   "rejections": _rejections(start.rejected, result.rejections),
+                   "t_final": result.t,
                    "solve_time_s": result.wall_time, "compile_time_s": result.compile_time}
     except KeyboardInterrupt as exc:
-        summary = {**tally.interrupted("t", exc), "rejections": None, "t_final": tally.reached}
+        summary = {**tally.interrupted("t", exc), "rejections": tally.rejections(),
+                   "t_final": tally.reached}
     except OutputError as exc:
-        summary = {**tally.failed_output("t", exc), "rejections": None,
+        summary = {**tally.failed_output("t", exc), "rejections": tally.rejections(),
                    "t_final": tally.reached}
     _finish(rec, summary)
     summary["restarted_from_step"] = start.step0 if restart else None

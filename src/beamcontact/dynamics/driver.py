@@ -59,7 +59,9 @@ from beamcontact.dynamics.control import (
     E_SET_CHANGE,
     H_TRY,
     ITERATIONS,
+    KINDS,
     MOTION_FACTOR,
+    REJECTED,
     STEPS,
     STOP,
     EnergyAccount,
@@ -144,6 +146,10 @@ class DynamicStep:
     iterations: int
     cutbacks: int
     diagnostics: dict
+    # the Newton iterations of every attempt so far (rejected ones too, as the result's
+    # ``iterations``) and the rejected attempts by kind (KINDS), both since step0
+    iterations_total: int = 0
+    rejected: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -206,7 +212,8 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
         state, stopped, first_s = engine.advance(state, ctl, limits, emit)
     else:
         state, stopped, first_s = _host_loop(engine, state, ctl, limits, emit, first)
-    status, message = ("completed", f"reached t = {ctl[T]:.6g} s in {int(ctl[STEPS])} steps") \
+    status, message = ("completed", f"reached t = {ctl[T]:.6g} s in "
+                                    f"{step0 + int(ctl[STEPS])} steps") \
         if stopped is None else ("failed", _failure(stopped, ctl, limits))
     return DynamicResult(status, message, int(ctl[STEPS]), int(ctl[ITERATIONS]),
                          int(ctl[CUTBACKS]), float(ctl[T]), state, float(ctl[H_TRY]),
@@ -224,7 +231,9 @@ def accepted_step(state, values: np.ndarray, counts: np.ndarray, after: np.ndarr
                        {**diag, "min_gap": float(values[V_GAP]),
                         "E_total": ctl_.total_energy(diag), "error": float(values[V_ERROR]),
                         "E_dissipated": float(after[E_DISSIPATED]),
-                        "E_set_change": float(after[E_SET_CHANGE])})
+                        "E_set_change": float(after[E_SET_CHANGE])},
+                       int(after[ITERATIONS]),
+                       tuple(int(n) for n in after[REJECTED:REJECTED + len(KINDS)]))
 
 
 def _initial_account(engine: Engine, state, capacity: SearchCapacity | None,

@@ -46,7 +46,9 @@ class HistoryWriter:
                 rows = list(csv.reader(f))
             if not rows or rows[0] != columns:
                 raise ValueError(f"{path}: columns differ from this case's; cannot resume")
-            kept = [r for r in rows[1:] if int(r[0]) <= resume_after_step]
+            # a last row cut short by a kill is dropped with the rows after the state
+            kept = [r for r in rows[1:]
+                    if len(r) == len(columns) and int(r[0]) <= resume_after_step]
         self._file = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
         self._csv = csv.writer(self._file)
         self._csv.writerow(columns)

@@ -27,11 +27,18 @@ class VtkSeries:
         self._x_ref = x_ref
         self._radii = radii
         self._entries: list[tuple[float, str]] = []
-        if resume_until is not None and (out_dir / "beams.pvd").is_file():
-            text = (out_dir / "beams.pvd").read_text(encoding="utf-8")
-            for t, f in re.findall(r'timestep="([^"]+)" part="0" file="([^"]+)"', text):
-                if float(t) <= resume_until:
-                    self._entries.append((float(t), f))
+        # a continued run appends to the series of beams.pvd; without a readable one
+        # (missing, damaged) ``resumed`` is False and the caller writes the series again
+        self.resumed = False
+        if resume_until is not None:
+            try:
+                text = (out_dir / "beams.pvd").read_text(encoding="utf-8")
+                found = re.findall(r'timestep="([^"]+)" part="0" file="([^"]+)"', text)
+                self._entries = [(float(t), f) for t, f in found
+                                 if float(t) <= resume_until and (out_dir / f).is_file()]
+                self.resumed = bool(self._entries)
+            except (OSError, UnicodeDecodeError, ValueError):
+                self._entries = []
         cells, start = [], 0
         beam_ids = []
         for b, m in enumerate(polylines):
