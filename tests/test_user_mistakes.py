@@ -70,3 +70,22 @@ def test_the_api_raises_case_errors_naming_the_key(tmp_path):
     a_file.write_text("not a folder", encoding="utf-8")
     with pytest.raises(bc.CaseError, match="cannot create this output folder"):
         bc.simulate(case, out=a_file)
+
+
+def test_the_examples_are_reachable_from_python_and_a_result_prints_short():
+    """The bundled examples from Python wherever beamcontact is installed (the Python API
+    page's first example uses them), and a Result that prints as one line, not as its
+    history and states."""
+    assert {"free_fall", "cantilever_end_moment"} <= set(bc.examples.names())
+    path = bc.examples.path("free_fall", "case_cg.toml")
+    assert bc.load_case(path).contact.model == "cg"
+    with pytest.raises(ValueError, match="the examples are: cantilever_end_moment"):
+        bc.examples.path("no_such_example")
+    case = bc.load_case(bc.examples.path("pinned_beam_vibration", "case.toml"))
+    case = case.model_copy(update={"analysis": case.analysis.model_copy(
+        update={"t_end": 0.004})})
+    result = bc.simulate(case)
+    text = repr(result)
+    assert "\n" not in text and len(text) < 200
+    assert text.startswith("Result('Pinned-pinned beam") and "4 steps" in text
+    assert "<table>" in result._repr_html_()

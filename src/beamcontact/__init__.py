@@ -33,10 +33,12 @@ _LAZY = {
         "Circle", "Solver", "Output", "OutputPoint")},
 }
 
-__all__ = ["enable_x64", "require_x64", "__version__", *_LAZY]
+__all__ = ["enable_x64", "require_x64", "__version__", "examples", *_LAZY]
 
 
 def __getattr__(name: str) -> Any:
+    if name == "examples":  # the bundled examples (beamcontact/examples.py)
+        return importlib.import_module("beamcontact.examples")
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'beamcontact' has no attribute {name!r}")

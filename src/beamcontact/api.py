@@ -56,7 +56,7 @@ class SavedStates:
         return len(self.parameter)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Result:
     """The outcome of :func:`simulate`.
 
@@ -80,6 +80,33 @@ class Result:
         """"completed", "failed" (the solver stopped; see ``summary["message"]``) or
         "interrupted"."""
         return self.summary["status"]
+
+    def __repr__(self) -> str:
+        """One line: the case, the outcome, the counts and where the files are (the
+        dataclass's own repr printed every row of the history and every state)."""
+        s = self.summary
+        where = "in memory" if self.out is None else f"out={str(self.out)!r}"
+        return (f"Result({self.case.title or 'untitled'!r}: {s['status']}, "
+                f"{s.get('steps', 0)} steps, {s.get('newton_iterations', 0)} Newton "
+                f"iterations, {s.get('wall_time_s', 0.0):.3g} s, {where})")
+
+    def _repr_html_(self) -> str:
+        """A short table for notebooks: outcome, message, counts, folder."""
+        from html import escape
+
+        s = self.summary
+        rows = [("case", self.case.title or ""), ("status", s["status"]),
+                ("message", s.get("message", "")), ("steps", s.get("steps", "")),
+                ("Newton iterations", s.get("newton_iterations", "")),
+                ("wall time [s]", f"{s.get('wall_time_s', 0.0):.3g}"),
+                ("history", f"{len(self.history)} rows x {len(self.history.columns)} "
+                            f"columns"),
+                ("saved states", len(self.states)),
+                ("output folder", "" if self.out is None else str(self.out))]
+        body = "".join(f"<tr><th style='text-align:left'>{escape(str(k))}</th>"
+                       f"<td style='text-align:left'>{escape(str(v))}</td></tr>"
+                       for k, v in rows)
+        return f"<table><caption>beamcontact Result</caption>{body}</table>"
 
     @property
     def _abscissa(self) -> str:

@@ -50,7 +50,7 @@ class HistoryWriter:
             kept = [r for r in rows[1:]
                     if len(r) == len(columns) and int(r[0]) <= resume_after_step]
         self._file = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
-        self._csv = csv.writer(self._file)
+        self._csv = csv.writer(self._file, lineterminator="\n")
         self._csv.writerow(columns)
         self._csv.writerows(kept)
         self._file.flush()
@@ -107,7 +107,7 @@ def write_table(path: Path, columns: list[str], rows: list[dict]) -> None:
     reader never sees half of it. None becomes an empty cell."""
     tmp = path.with_suffix(path.suffix + ".tmp")
     with open(tmp, "w", newline="", encoding="utf-8") as f:
-        writer = csv.writer(f)
+        writer = csv.writer(f, lineterminator="\n")
         writer.writerow(columns)
         writer.writerows([["" if r.get(c) is None else _fmt(r[c]) for c in columns]
                           for r in rows])
