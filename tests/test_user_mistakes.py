@@ -89,3 +89,50 @@ def test_the_examples_are_reachable_from_python_and_a_result_prints_short():
     assert "\n" not in text and len(text) < 200
     assert text.startswith("Result('Pinned-pinned beam") and "4 steps" in text
     assert "<table>" in result._repr_html_()
+
+
+def _variant(tmp_path: Path, name: str, change) -> Path:
+    import tomllib
+
+    import tomli_w
+
+    raw = tomllib.loads((REPO / "examples" / "free_fall" / "case_cg.toml").read_text(
+        encoding="utf-8"))
+    change(raw)
+    path = tmp_path / name
+    path.write_text(tomli_w.dumps(raw), encoding="utf-8")
+    return path
+
+
+def test_check_is_as_strict_as_run(tmp_path):
+    """check reports every invalid value at once (one line each), the initial overlap
+    that run refuses, and warns of keys that the case's model or analysis ignores."""
+    def many(raw):
+        raw["beams"][0]["material"]["E"] = -1.0
+        raw["beams"][1]["elements"] = 0
+        raw["analysis"]["dt"] = -1.0
+
+    proc = _cli("check", _variant(tmp_path, "many.toml", many))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.strip().splitlines() == [
+        "error: analysis.dt: must be greater than 0, got -1.0",
+        "error: beams[0] (lower).material.E: must be greater than 0, got -1.0",
+        "error: beams[1] (upper).elements: must be greater than or equal to 1, got 0"]
+
+    def overlap(raw):
+        raw["beams"][1]["line"] = {"start": [3.5, 0.05], "end": [6.5, 0.05]}
+
+    path = _variant(tmp_path, "overlap.toml", overlap)
+    checked, ran = _cli("check", path), _cli("run", path, "--out", tmp_path / "o", "-q")
+    _one_line(checked, 2, "beams 'lower' and 'upper' interpenetrate in the initial")
+    assert checked.stderr == ran.stderr and ran.returncode == 2
+
+    def ignored(raw):
+        raw["contact"]["penalty"] = 1.0e6
+        raw["analysis"]["load_steps"] = 5
+
+    proc = _cli("check", _variant(tmp_path, "ignored.toml", ignored))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.strip().splitlines() == [
+        'warning: contact.penalty: ignored with model "cg" (it applies to model "ipip")',
+        "warning: analysis.load_steps: ignored in a dynamic analysis"]

@@ -27,7 +27,7 @@ from beamcontact.dynamics.control import KINDS, EnergyAccount, total_energy
 from beamcontact.dynamics.driver import DynamicStep, solve_dynamic
 from beamcontact.dynamics.hht import DynState
 from beamcontact.dynamics.report import DIAGNOSTICS
-from beamcontact.io.case import Case, CaseError, parse_case
+from beamcontact.io.case import Case, CaseError, ignored_keys, parse_case
 from beamcontact.io.output_folder import claimed
 from beamcontact.io.results import read_last_state, write_summary
 from beamcontact.progress import Progress, ProgressInfo
@@ -144,7 +144,8 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     wall0 = time.perf_counter()
     prepared = prepare(case)
     model, disc, contact = prepared.model, prepared.disc, prepared.contact
-    warnings = [] if restart else _check_initial_overlap(case, model, contact)
+    warnings = ignored_keys(case) + ([] if restart else
+                                     _check_initial_overlap(case, model, contact))
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
     try:
         summary, record = run(prepared, case_text, out_dir, progress, restart)
@@ -174,6 +175,16 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
         with writing(out_dir / "summary.json"):
             write_summary(out_dir / "summary.json", summary)
     return summary, record
+
+
+def check_case(case: Case) -> list[str]:
+    """What ``beamcontact check`` adds to the validation of the file, as a run would
+    meet it before its first step: the model is built and the initial overlap checked
+    (a CaseError), and the warnings of a run's start come back (ignored keys, a shallow
+    initial overlap)."""
+    prepared = prepare(case)
+    return ignored_keys(case) + _check_initial_overlap(case, prepared.model,
+                                                       prepared.contact)
 
 
 def _engine_used(case: Case, model: Model, contact) -> dict:

@@ -125,9 +125,10 @@ def parse_case(raw: dict) -> Case:
     try:
         case = Case.model_validate(raw)
     except ValidationError as exc:
-        errors = exc.errors()
-        more = f" (and {len(errors) - 1} more problem(s))" if len(errors) > 1 else ""
-        raise CaseError(_describe(errors[0], raw) + more) from None
+        # every problem, one line each (the checks across tables run only once every
+        # table is valid)
+        raise CaseError("\n".join(dict.fromkeys(_describe(e, raw) for e in exc.errors()))) \
+            from None
     return case
 
 
@@ -197,6 +198,39 @@ def _check_obstacles(case: Case) -> None:
     if case.obstacles and case.contact.model == "cg" and case.contact.exponent <= 4.5:
         raise CaseError(f"contact.exponent: the coarse-grained law against an obstacle "
                         f"needs m > 4.5 (section to half-space), got {case.contact.exponent}")
+
+
+# the keys of [contact] that each law reads; the others are ignored (listed by
+# ignored_keys) rather than refused: a sweep over contact.model carries both laws' keys
+_LAW_KEYS = {"ipip": {"penalty", "pairing"},
+             "cg": {"exponent", "k", "densities", "cutoff", "q_reg"}}
+
+
+def ignored_keys(case: Case) -> list[str]:
+    """Warnings, one per key set in the case that the chosen model or analysis does not
+    use (it would otherwise be silently ignored): a law's parameters under the other law
+    or without contact, time-stepping keys in statics, load_steps in dynamics. Warnings,
+    not errors, so that one case file serves a sweep over contact.model or a static and a
+    dynamic run; the pairing of "cg" stays an error (it changes what "ipip" computes)."""
+    found = []
+    contact, given = case.contact, case.contact.model_fields_set
+    for law, keys in _LAW_KEYS.items():
+        if contact.model != law:
+            for key in sorted(keys & given - {"pairing"}):
+                used = "no contact law" if contact.model == "none" else \
+                    f"model \"{contact.model}\""
+                found.append(f"contact.{key}: ignored with {used} (it applies to "
+                             f"model \"{law}\")")
+    if contact.model == "none":
+        for key in sorted(given & {"segments_per_element", "max_penetration", "capacity",
+                                   "self_contact", "self_exclusion", "pairs"}):
+            found.append(f"contact.{key}: ignored with no contact law (contact.model = "
+                         f"\"none\")")
+    an, given = case.analysis, case.analysis.model_fields_set
+    unused = ({"t_end", "dt", "dt_min", "alpha"} if an.kind == "static" else {"load_steps"})
+    for key in sorted(unused & given):
+        found.append(f"analysis.{key}: ignored in a {an.kind} analysis")
+    return found
 
 
 def read_case_file(path: str | Path) -> tuple[Case, str]:

@@ -37,9 +37,8 @@ class _TableMeta(type(BaseModel)):
         try:
             return super().__call__(*args, **kwargs)
         except ValidationError as exc:
-            errors = exc.errors()
-            more = f" (and {len(errors) - 1} more problem(s))" if len(errors) > 1 else ""
-            raise CaseError(_constructor_error(cls.__name__, errors[0]) + more) from None
+            raise CaseError("\n".join(dict.fromkeys(
+                _constructor_error(cls.__name__, e) for e in exc.errors()))) from None
 
 
 class _Strict(BaseModel, metaclass=_TableMeta):
