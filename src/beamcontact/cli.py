@@ -391,9 +391,11 @@ def check(case: Annotated[Path, typer.Argument(help="Case file (TOML).")]) -> No
     checks before its first step (a static beam nothing holds, beams that interpenetrate
     in the initial configuration); keys that the case's model or analysis ignores are
     warnings. Exit code 0 when valid, 2 when not."""
+    import beamcontact
     from beamcontact.io.case import CaseError
     from beamcontact.runner import check_case
 
+    beamcontact.enable_x64()  # the overlap check of a large model searches with JAX
     parsed, _ = _load(case)
     _check_static_restraints(parsed)
     try:
