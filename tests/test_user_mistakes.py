@@ -136,3 +136,23 @@ def test_check_is_as_strict_as_run(tmp_path):
     assert proc.stderr.strip().splitlines() == [
         'warning: contact.penalty: ignored with model "cg" (it applies to model "ipip")',
         "warning: analysis.load_steps: ignored in a dynamic analysis"]
+
+
+def test_progress_into_a_log_is_lines_not_a_bar(monkeypatch):
+    """Where the output is not a terminal (a batch job's log) the progress is the title
+    and a readable line every LOG_SECONDS and at the end, not a bar's frames."""
+    import io
+
+    from rich.console import Console
+
+    import beamcontact.progress as progress
+
+    monkeypatch.setattr(progress, "LOG_SECONDS", 0.0)
+    out = io.StringIO()
+    with progress.progress_bar("a title", console=Console(file=out), lines=True) as show:
+        for step, t in ((0, 0.0), (1, 0.5), (2, 1.0)):
+            show(progress.ProgressInfo(t, "t", t, step, 0.5, 3))
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "a title" and len(lines) == 3
+    assert lines[1].startswith(" 50.0 %  t 0.5 s  dt 5.0e-01 s  it 3  step 1")
+    assert lines[2].startswith("100.0 %  t 1 s")

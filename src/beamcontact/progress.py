@@ -98,8 +98,36 @@ def _ignore(info: ProgressInfo) -> None:
     """The callback of a disabled bar: does nothing."""
 
 
+LOG_SECONDS = 10.0
+"""Where the output is not a terminal (a batch job's log), a progress line this often."""
+
+
+def _log_lines(title: str, console: Any) -> Progress:
+    """The callback that prints the title, then a line of progress every LOG_SECONDS and
+    when the run is done: a log file gets a readable record instead of a bar's frames."""
+    import time
+
+    console.print(title, markup=False, highlight=False, soft_wrap=True)
+    start = time.monotonic()
+    last = [-float("inf")]
+
+    def log(info: ProgressInfo) -> None:
+        now = time.monotonic()
+        done = _completed(info.fraction) >= 1.0
+        if info.step == 0 or (now - last[0] < LOG_SECONDS and not done):
+            return
+        last[0] = now
+        f = _fields(info)
+        console.print(f"{100 * _completed(info.fraction):5.1f} %  {f['value']}  {f['dt']}  "
+                      f"{f['iterations']}  step {info.step}  {now - start:.0f} s elapsed",
+                      markup=False, highlight=False, soft_wrap=True)
+
+    return log
+
+
 @contextmanager
-def progress_bar(title: str, enabled: bool = True, console: Any = None) -> Iterator[Progress]:
+def progress_bar(title: str, enabled: bool = True, console: Any = None,
+                 lines: bool | None = None) -> Iterator[Progress]:
     """Draw the progress of one run as a bar at most 80 columns wide, for a ``with`` block.
 
     Prints ``title`` once on its own line, then yields the :data:`Progress` callback to
@@ -110,12 +138,21 @@ def progress_bar(title: str, enabled: bool = True, console: Any = None) -> Itera
     (also on an exception, e.g. Ctrl-C, so that a message printed afterwards comes below
     it). With ``enabled`` false nothing is drawn and the callback does nothing (``--quiet``).
     ``console`` is a rich Console to draw on (default: rich's console on stdout; tests pass
-    one writing to a string).
+    one writing to a string). Where stdout is not a terminal (``lines`` None: a batch
+    job's log, a pipe) the progress is a line every :data:`LOG_SECONDS` instead
+    (``lines`` True or False forces either).
     """
     if not enabled:
         yield _ignore
         return
+    from rich.console import Console
     from rich.progress import Progress as RichProgress
+
+    if lines is None:
+        lines = console is None and not Console().is_terminal
+    if lines:
+        yield _log_lines(title, console or Console())
+        return
 
     bar = RichProgress(*_columns(), console=console, refresh_per_second=_REFRESH_PER_SECOND,
                        transient=False)
