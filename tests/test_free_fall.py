@@ -80,9 +80,16 @@ def test_first_amplitude_ignores_wiggles_about_zero():
 
     t = np.arange(9.0)
     uy = np.array([-1e-7, 1e-8, -0.5, -2.0, -1.0, 0.01, 0.3, 1.0, -2.5])
-    assert first_excursion_extreme(t, uy) == {"uy": -2.0, "t": 3.0}
-    assert first_excursion_extreme(t, np.abs(uy)) == {"uy": 2.5, "t": 8.0}  # never returns
-    assert first_excursion_extreme(t, np.zeros(9)) == {"uy": 0.0, "t": 0.0}
+    assert first_excursion_extreme(t, uy) == {"uy": -2.0, "t": 3.0, "ended": True}
+    # never returns: the extreme so far, flagged (and warned of in the run's summary)
+    assert first_excursion_extreme(t, np.abs(uy)) == {"uy": 2.5, "t": 8.0, "ended": False}
+    assert first_excursion_extreme(t, np.zeros(9)) == {"uy": 0.0, "t": 0.0, "ended": False}
+    from beamcontact.summary import unfinished_amplitude_warning
+
+    assert unfinished_amplitude_warning({"A": {"uy": -2.0, "t": 3.0, "ended": True}}) is None
+    assert unfinished_amplitude_warning({"A": {"ended": True}, "B": {"ended": False}}) \
+        .startswith("first_amplitude of B: the first excursion after the first impact has "
+                    "not ended by t_end")
 
 
 @pytest.mark.parametrize("model", ["cg", "ipip"])

@@ -42,7 +42,12 @@ from beamcontact.setup.start import (
 )
 from beamcontact.statics.driver import StaticStep, solve_static
 from beamcontact.stop_signals import stopped_by
-from beamcontact.summary import contact_summary, effective_settings, set_change_warning
+from beamcontact.summary import (
+    contact_summary,
+    effective_settings,
+    set_change_warning,
+    unfinished_amplitude_warning,
+)
 
 ENERGY_COLUMNS = ["E_strain", "E_gravity", "E_ext", "E_contact", "E_total", "min_gap"]
 DYNAMIC_COLUMNS = ["E_kin", *ENERGY_COLUMNS, "E_dissipated", "E_set_change", "p_x", "p_y",
@@ -164,6 +169,7 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
             warnings.append(resolution_warning(res, [b.name for b in case.beams]))
     if contact is not None and contact.law.closest_pairs:
         warnings.append(set_change_warning(summary.get("energy"), contact.law.pairing))
+    warnings.append(unfinished_amplitude_warning(summary.get("first_amplitude") or {}))
     summary["warnings"] = [w for w in warnings if w is not None]
     summary.update({"title": case.title, "kind": case.analysis.kind,
                     "solver": {**effective_settings(case),

@@ -77,16 +77,29 @@ def contact_episodes(h: dict, level: float = 1e-4) -> list[dict]:
 def first_excursion_extreme(t: np.ndarray, uy: np.ndarray, level: float = 0.01) -> dict:
     """Extreme of the first excursion of ``uy``: it starts where |uy| first exceeds
     ``level`` times max |uy| and ends where uy passes that level with the opposite sign
-    (or at the end), so that round-off wiggles about zero do not count as excursions."""
+    (or at the end), so that round-off wiggles about zero do not count as excursions.
+    ``ended`` is False when the excursion has not ended by the last step: the value is
+    then the extreme so far, and the run too short to give the amplitude."""
     tau = level * float(np.max(np.abs(uy)))
     if tau == 0.0:
-        return {"uy": 0.0, "t": float(t[0])}
+        return {"uy": 0.0, "t": float(t[0]), "ended": False}
     k0 = int(np.argmax(np.abs(uy) > tau))
     sign = np.sign(uy[k0])
     back = np.where(sign * uy[k0:] < -tau)[0]
     end = k0 + (int(back[0]) if back.size else len(uy) - k0)
     k = k0 + int(np.argmax(sign * uy[k0:end]))
-    return {"uy": float(uy[k]), "t": float(t[k])}
+    return {"uy": float(uy[k]), "t": float(t[k]), "ended": bool(back.size)}
+
+
+def unfinished_amplitude_warning(first_amplitude: dict) -> str | None:
+    """A warning naming the output points whose first excursion after the first impact
+    has not ended by t_end (their first_amplitude is the extreme so far), else None."""
+    open_ = [name for name, a in first_amplitude.items() if not a.get("ended", True)]
+    if not open_:
+        return None
+    return (f"first_amplitude of {', '.join(open_)}: the first excursion after the first "
+            f"impact has not ended by t_end, so the value is the extreme so far (a longer "
+            f"analysis.t_end gives the amplitude)")
 
 
 def set_change_warning(energy: dict | None, pairing: str, limit: float = 0.01) -> str | None:
