@@ -151,15 +151,16 @@ def test_bad_dynamic_input_is_rejected_naming_the_key(tmp_path, mutation, key):
     assert len(lines) == 1 and lines[0].startswith(f"error: {key}:"), proc.stderr
 
 
-def test_library_refuses_float32():
+def test_library_refuses_float32(tmp_path):
     code = ("import beamcontact, pathlib\n"
             "from beamcontact.io.case import read_case_file\n"
             "from beamcontact.runner import run_case\n"
             f"case, text = read_case_file({str(EXAMPLE)!r})\n"
             "run_case(case, text, pathlib.Path('unused'))\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env={"PATH": "/usr/bin:/bin", "JAX_ENABLE_X64": "0"})
+                          env={"PATH": "/usr/bin:/bin", "JAX_ENABLE_X64": "0"}, cwd=tmp_path)
     assert proc.returncode != 0 and "beamcontact needs float64" in proc.stderr
+    assert not (tmp_path / "unused").exists()  # refused before its folder was made
 
 
 def test_unreadable_and_malformed_files(tmp_path):

@@ -129,6 +129,7 @@ def execute(case: Case, case_text: str, out_dir: Path | None,
     depend on the machine and on how many runs share it (a sweep's workers are
     single-threaded). For the small dense systems here one thread is also the fastest.
     """
+    require_x64()  # before the folder is claimed: a refused run leaves nothing behind
     # scipy.linalg loads the OpenBLAS that JAX's LAPACK calls, so that the limit below
     # reaches it (a library loaded later keeps its threads); Numba loads it anyway
     import scipy.linalg  # noqa: F401
