@@ -56,7 +56,7 @@ def main() -> None:
         update={"analysis": from_file.analysis.model_copy(update={"t_end": args.t_end})})
     assert case == from_file, "the Python-built case differs from case_cg.toml"
 
-    python_run = bc.simulate(case, out=args.out, progress=True)
+    python_run = bc.simulate(case, out=args.out, progress=True, overwrite=True)
     toml_run = bc.simulate(from_file)
     identical = python_run.history.equals(toml_run.history)
     print(f"{python_run.status}: {python_run.summary['message']}")
