@@ -95,10 +95,11 @@ class _Files:
                  resume: tuple[int, float] | None):
         out_dir.mkdir(parents=True, exist_ok=True)
         (out_dir / "plots").mkdir(exist_ok=True)
+        step = None if resume is None else resume[0]
+        # first: a history that cannot be continued leaves the folder as it was
+        self.history = HistoryWriter(out_dir / "history.csv", record.columns, step)
         # the effective case, as a sweep's runs have it
         (out_dir / "case.toml").write_text(case_text, encoding="utf-8")
-        step = None if resume is None else resume[0]
-        self.history = HistoryWriter(out_dir / "history.csv", record.columns, step)
         self.states = StateWriter(out_dir / "results.h5", case_text, record.disc.beams, n_dof,
                                   record.abscissa, step)
         self.vtk = VtkSeries(out_dir, [m for m, _ in record.maps],

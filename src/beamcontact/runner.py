@@ -150,8 +150,7 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     wall0 = time.perf_counter()
     prepared = prepare(case)
     model, disc, contact = prepared.model, prepared.disc, prepared.contact
-    warnings = ignored_keys(case) + ([] if restart else
-                                     _check_initial_overlap(case, model, contact))
+    warnings = _start_warnings(prepared, restart)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
     try:
         summary, record = run(prepared, case_text, out_dir, progress, restart)
@@ -187,11 +186,17 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
 def check_case(case: Case) -> list[str]:
     """What ``beamcontact check`` adds to the validation of the file, as a run would
     meet it before its first step: the model is built and the initial overlap checked
-    (a CaseError), and the warnings of a run's start come back (ignored keys, a shallow
-    initial overlap)."""
-    prepared = prepare(case)
-    return ignored_keys(case) + _check_initial_overlap(case, prepared.model,
-                                                       prepared.contact)
+    (a CaseError), and the warnings of a run's start come back."""
+    return _start_warnings(prepare(case))
+
+
+def _start_warnings(prepared: Prepared, restart: bool = False) -> list[str]:
+    """The checks of a run's start: keys the case ignores (warnings) and, unless it
+    continues a run, the initial overlap (a CaseError, or a warning when shallow)."""
+    case = prepared.case
+    overlap = [] if restart else _check_initial_overlap(case, prepared.model,
+                                                        prepared.contact)
+    return ignored_keys(case) + overlap
 
 
 def _engine_used(case: Case, model: Model, contact) -> dict:
@@ -306,7 +311,9 @@ def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, d
                         f"another run writing it?") from None
     stored = parse_case(tomllib.loads(stored_text))
     _same_model(stored, case)
-    _check_history(out_dir / "history.csv")
+    if not (out_dir / "history.csv").is_file():
+        raise CaseError(f"--restart: {out_dir / 'history.csv'} is missing, so the run cannot "
+                        f"be continued; {_AGAIN}")
     if "v" not in last or last["u"].shape != (model.n_dof,):
         raise CaseError(f"--restart: {path} does not hold a dynamic run of this case")
     if "energy_account" not in last:
@@ -318,28 +325,7 @@ def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, d
     return state, last
 
 
-def _check_history(path: Path) -> None:
-    """Refuse, in one line, to continue a run whose history.csv is missing or damaged
-    (its rows cannot be made again from results.h5, which holds states, not energies)."""
-    again = "run the case again without --restart (with --overwrite)"
-    if not path.is_file():
-        raise CaseError(f"--restart: {path} is missing, so the run cannot be continued; "
-                        f"{again}")
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-        header = lines[0].split(",") if lines else []
-        # the last line may be a write cut short by a kill (it follows the last saved
-        # state, and is dropped); any other line must be whole
-        for line_no, line in enumerate(lines[1:-1], start=2):
-            values = line.split(",")
-            if len(values) != len(header):
-                raise ValueError(f"line {line_no} has {len(values)} values, not "
-                                 f"{len(header)}")
-            int(values[0])
-            [float(v) for v in values[1:]]
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise CaseError(f"--restart: {path} is damaged ({exc}), so the run cannot be "
-                        f"continued; {again}") from None
+_AGAIN = "run the case again without --restart (with --overwrite)"
 
 
 def _account_record(diag: dict) -> np.ndarray:
@@ -423,8 +409,12 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
             raise CaseError(f"--restart: the run in {out_dir} already reached t = "
                             f"{float(state.t):.6g} s >= analysis.t_end")
         step0 = int(last["step"])
-        rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
-                        DYNAMIC_COLUMNS, resume=(step0, float(state.t)))
+        try:
+            rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "t",
+                            DYNAMIC_COLUMNS, resume=(step0, float(state.t)))
+        except (ValueError, UnicodeDecodeError) as exc:  # history.csv (HistoryWriter)
+            raise CaseError(f"--restart: {out_dir / 'history.csv'} is damaged ({exc}), so "
+                            f"the run cannot be continued; {_AGAIN}") from None
         # results.h5 of a run before the rejections were kept counts none of them
         rejected = np.asarray(last.get("rejections_total", np.zeros(len(KINDS))), float)
         return _Start(state, step0, float(last["dt_next"]), int(last["iterations_total"]),

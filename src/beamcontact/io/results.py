@@ -35,7 +35,9 @@ class HistoryWriter:
     """history.csv: one row per accepted step, flushed at once.
 
     With ``resume_after_step`` the existing file is kept up to that step (rows written after
-    the last saved state of an interrupted run are dropped) and appended to.
+    the last saved state of an interrupted run are dropped) and appended to; a damaged file
+    (a line that is not a row of these columns) is a ValueError naming the line, and the
+    file is left as it was.
     """
 
     def __init__(self, path: Path, columns: list[str], resume_after_step: int | None = None):
@@ -45,8 +47,14 @@ class HistoryWriter:
             with open(path, newline="", encoding="utf-8") as f:
                 rows = list(csv.reader(f))
             if not rows or rows[0] != columns:
-                raise ValueError(f"{path}: columns differ from this case's; cannot resume")
-            # a last row cut short by a kill is dropped with the rows after the state
+                raise ValueError("its columns differ from this case's")
+            # every row whole but the last, which may be a write cut short by a kill: it
+            # is dropped with the rows after the state (a ValueError names a bad line)
+            for line_no, r in enumerate(rows[1:-1], start=2):
+                if len(r) != len(columns):
+                    raise ValueError(f"line {line_no} has {len(r)} values, not {len(columns)}")
+                int(r[0])
+                [float(v) for v in r[1:]]
             kept = [r for r in rows[1:]
                     if len(r) == len(columns) and int(r[0]) <= resume_after_step]
         self._file = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
@@ -129,7 +137,8 @@ class StateWriter:
                  resume_after_step: int | None = None):
         self._path = path
         self._pending: list[dict] = []
-        self._pending_bytes = 0
+        self._sizes: list[int] = []  # bytes of each queued state
+        self._queued = 0  # and their sum
         self._last_flush = time.monotonic()
         if resume_after_step is not None:
             self._h5 = h5py.File(path, "a")
@@ -168,9 +177,10 @@ class StateWriter:
                  "u": np.asarray(u, float),
                  **{k: np.asarray(v, float) for k, v in extra.items()}}
         self._pending.append(state)
-        self._pending_bytes += sum(np.asarray(v).nbytes for v in state.values())
+        self._sizes.append(sum(np.asarray(v).nbytes for v in state.values()))
+        self._queued += self._sizes[-1]
         if (time.monotonic() - self._last_flush > self.flush_seconds
-                or self._pending_bytes > self.flush_bytes):
+                or self._queued > self.flush_bytes):
             self.flush()
 
     def flush(self) -> None:
@@ -180,12 +190,11 @@ class StateWriter:
         full = None
         if self._pending:
             free = free_space(self._path)
-            if free < 2 * self._pending_bytes + DISK_RESERVE:
+            if free < 2 * self._queued + DISK_RESERVE:
                 # the states that fit, in order (a restart continues from the last of
                 # them); the rest are dropped
-                sizes = np.cumsum([2 * sum(np.asarray(v).nbytes for v in p.values())
-                                   for p in self._pending])
-                fits = int(np.searchsorted(sizes, free - DISK_RESERVE, side="right"))
+                fits = int(np.searchsorted(2 * np.cumsum(self._sizes), free - DISK_RESERVE,
+                                           side="right"))
                 full = OutputError(f"cannot write {self._path}: its disk is full "
                                    f"({free / 2**20:.1f} MB free)")
                 del self._pending[fits:]
@@ -201,7 +210,8 @@ class StateWriter:
                 st[name][n:] = values
             self._pending.clear()
             self._h5.flush()
-        self._pending_bytes = 0
+        self._sizes.clear()
+        self._queued = 0
         self._last_flush = time.monotonic()
         if full is not None:
             raise full
