@@ -33,11 +33,6 @@ class Terminated(KeyboardInterrupt):
         """The signal's name (e.g. "SIGTERM")."""
         return signal.Signals(self.signum).name
 
-    @property
-    def exit_code(self) -> int:
-        """128 + the signal's number."""
-        return 128 + self.signum
-
 
 def stopped_by(exc: KeyboardInterrupt) -> str:
     """What stopped a run: "the user" (Ctrl-C) or "SIGTERM" and the like."""
