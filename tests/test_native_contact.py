@@ -94,6 +94,22 @@ def test_cg_pair_law_matches_jax_ad(m):
     np.testing.assert_allclose(got, want, rtol=RTOL, atol=0.0)
 
 
+@pytest.mark.parametrize("m", [6.0, 12.0, 20.0, 7.3, 80.0])
+def test_cg_pair_law_over_arrays_is_the_scalar_law(m):
+    """cg_pair_s_many (the law pass by pass, for SIMD) gives bitwise the numbers of
+    cg_pair_s in every regime: whole and half exponents by repeated squaring (6, 12, 20),
+    through exp and log (7.3; 80: 2 n above 64), the regularisation zone, the cutoff and
+    the floor of s. The JAX comparison of cg_pair_s above then covers both."""
+    amp = float(_cg(m).amplitude(R1, R2, BETA12))
+    d = R12 + _gaps(np.random.default_rng(5), Q_REG, CUTOFF - R12)
+    s = np.r_[d * d, 0.0, 1e-301, 1e-299, (R12 + Q_REG) ** 2, CUTOFF**2, R12**2]
+    f, f1, f2 = (np.full(s.size + 3, 7.0) for _ in range(3))
+    cgn.cg_pair_s_many(s, s.size, R12, amp, m, Q_REG, CUTOFF, f, f1, f2)
+    want = _native_derivatives(cgn.cg_pair_s, s, R12, amp, m, Q_REG, CUTOFF)
+    assert np.array_equal(np.stack([f, f1, f2], 1)[:s.size], want)
+    assert np.all(f[s.size:] == 7.0)  # nothing written past count
+
+
 @pytest.mark.parametrize("m", [8.0, 12.0, 9.7])
 def test_cg_obstacle_law_matches_jax_ad(m):
     """w Phi_w(q) of a point against a half-space and its q-derivatives, cut off at the

@@ -12,8 +12,12 @@ Where the JAX path evaluates every point pair of a block, these skip the pairs t
 contribute exactly nothing: weight 0 (IPIP pairs not selected, masked pairs) and
 centre-line distance at or beyond the law's reach (the cutoff of eq. 9; R1 + R2 for the
 penalty, which acts only on overlaps), a whole row at once when its point is beyond the
-reach of the bounding box of the other element's points. Most pairs of a candidate block
-are beyond the cutoff, which is where the speed comes from.
+reach of the bounding box of the other element's points, and chunks of CHUNK points of
+the other element by their boxes. Most pairs of a candidate block are beyond the cutoff,
+which is where the speed comes from. The law is evaluated for all pairs within reach of
+a block at once (:func:`pair_laws`: the coarse-grained law pass by pass, so that its
+square roots and divisions run as SIMD instructions), then summed row by row in the
+order of j, so that every sum is the one of a pair-by-pair loop, bit for bit.
 
 The law is chosen by a small integer (LAW_CG, LAW_PENALTY) and its parameters travel as
 plain floats: cached Numba code cannot close over a law object. Layout: for elements of
@@ -28,7 +32,7 @@ import math
 import numpy as np
 
 from beamcontact._native import njit, njit_parallel, prange
-from beamcontact.contact.laws.coarse_grained_native import cg_obstacle, cg_pair_s
+from beamcontact.contact.laws.coarse_grained_native import cg_obstacle, cg_pair_s_many
 from beamcontact.contact.laws.penalty_native import penalty_obstacle, penalty_pair_s
 
 LAW_CG = 0
@@ -38,13 +42,10 @@ LAW_PENALTY = 1
 # skipped must be one whose law is exactly zero (d >= reach after the sqrt)
 _REACH_MARGIN = 1.0 + 1e-12
 
-
-@njit
-def pair_law_s(law, s, R12, amplitude, m, q_reg, cutoff):
-    """(f, df/ds, d2f/ds2) of the pair law ``law`` at squared distance s (eq. 9 or 3)."""
-    if law == LAW_CG:
-        return cg_pair_s(s, R12, amplitude, m, q_reg, cutoff)
-    return penalty_pair_s(s, R12, amplitude)
+# the points of element 2 are tested against a row's point in chunks of this many, each by
+# its box first: most pairs of a block are beyond the reach, and a chunk's box test skips
+# all of its pairs at once
+CHUNK = 8
 
 
 @njit
@@ -77,7 +78,7 @@ def _points(R, X, out):
 
 
 @njit
-def _box_gap2(px, py, lo_x, lo_y, hi_x, hi_y):
+def point_box_gap2(px, py, lo_x, lo_y, hi_x, hi_y):
     """Squared distance from (px, py) to a box: a lower bound of the squared distance to
     every point in it, in floating point too (rounding is monotone)."""
     dx = max(lo_x - px, 0.0, px - hi_x)
@@ -133,25 +134,67 @@ def bounding_box(p):
 
 
 @njit
-def _row_pairs(law, px, py, p2, Wi, reach2, R12, amplitude, m, q_reg, cutoff, sums2, cols,
-               h):
-    """The pairs of one point (px, py) of element 1 with the points p2 of element 2,
-    weights Wi: adds each pair's gradient and Hessian (gx, gy, hxx, hxy, hyy) to sums2[j]
-    and records the interacting j in cols and their Hessians in h. Returns (energy, the
-    sums of (gx, gy, hxx, hxy, hyy) over j, the number of interacting j)."""
+def chunk_boxes(p, out):
+    """out[c] = the box (lo_x, lo_y, hi_x, hi_y) of points p[c CHUNK:(c + 1) CHUNK] (the
+    last chunk may be short)."""
+    for c in range(out.shape[0]):
+        out[c] = bounding_box(p[c * CHUNK:min((c + 1) * CHUNK, p.shape[0])])
+
+
+@njit
+def _row_within_reach(px, py, p2, boxes2, Wi, reach2, j_out, r_out, s_out, start):
+    """The pairs of one point (px, py) of element 1 with the points p2 of element 2 that
+    the law may see: weight Wi[j] not 0 and squared distance below reach2, in the order
+    of j, written from index ``start`` on (j, r = (px, py) - p2[j], s = r . r). Chunks of
+    CHUNK points of p2 whose box (boxes2) is beyond the reach are skipped unseen. Returns
+    the index after the last pair written."""
+    c_out = start
+    n2 = p2.shape[0]
+    for c in range(boxes2.shape[0]):
+        b = boxes2[c]
+        if point_box_gap2(px, py, b[0], b[1], b[2], b[3]) >= reach2:
+            continue
+        for j in range(c * CHUNK, min((c + 1) * CHUNK, n2)):
+            if Wi[j] == 0.0:
+                continue
+            rx, ry = px - p2[j, 0], py - p2[j, 1]
+            sj = rx * rx + ry * ry
+            if sj >= reach2:
+                continue
+            j_out[c_out] = j
+            r_out[c_out, 0] = rx
+            r_out[c_out, 1] = ry
+            s_out[c_out] = sj
+            c_out += 1
+    return c_out
+
+
+@njit
+def pair_laws(law, s, count, R12, amplitude, m, q_reg, cutoff, f, f1, f2):
+    """(f, df/ds, d2f/ds2) of the pair law ``law`` (eq. 9 or 3) at each squared distance
+    s[:count], into f, f1, f2 (the coarse-grained law pass by pass,
+    :func:`~beamcontact.contact.laws.coarse_grained_native.cg_pair_s_many`, bitwise the
+    numbers of ``cg_pair_s``)."""
+    if law == LAW_CG:
+        cg_pair_s_many(s, count, R12, amplitude, m, q_reg, cutoff, f, f1, f2)
+        return
+    for c in range(count):
+        f[c], f1[c], f2[c] = penalty_pair_s(s[c], R12, amplitude)
+
+
+@njit
+def _row_sums(Wi, js, r, phi, d1, d2, first, last, sums2, cols, h):
+    """The pairs first..last-1 of one point of element 1 (:func:`_row_within_reach`)
+    with their law values (phi, d1, d2): adds each pair's gradient and Hessian (gx, gy,
+    hxx, hxy, hyy) to sums2[j] and records the j in cols and their Hessians in h.
+    Returns (energy, the sums of (gx, gy, hxx, hxy, hyy) over the pairs)."""
     energy = gx1 = gy1 = hxx1 = hxy1 = hyy1 = 0.0
-    count = 0
-    for j in range(p2.shape[0]):
+    for c in range(first, last):
+        j = js[c]
         w = Wi[j]
-        if w == 0.0:
-            continue
-        rx, ry = px - p2[j, 0], py - p2[j, 1]
-        s = rx * rx + ry * ry
-        if s >= reach2:
-            continue
-        phi, d1, d2 = pair_law_s(law, s, R12, amplitude, m, q_reg, cutoff)
-        energy += w * phi
-        A, B = 2.0 * w * d1, 4.0 * w * d2  # pair gradient A r, Hessian A I + B r r^T
+        rx, ry = r[c, 0], r[c, 1]
+        energy += w * phi[c]
+        A, B = 2.0 * w * d1[c], 4.0 * w * d2[c]  # pair gradient A r, Hessian A I + B r r^T
         gx, gy = A * rx, A * ry
         hxx, hxy, hyy = A + B * rx * rx, B * rx * ry, A + B * ry * ry
         gx1 += gx
@@ -164,12 +207,12 @@ def _row_pairs(law, px, py, p2, Wi, reach2, R12, amplitude, m, q_reg, cutoff, su
         sums2[j, 2] += hxx
         sums2[j, 3] += hxy
         sums2[j, 4] += hyy
-        cols[count] = j
-        h[count, 0] = hxx
-        h[count, 1] = hxy
-        h[count, 2] = hyy
-        count += 1
-    return energy, gx1, gy1, hxx1, hxy1, hyy1, count
+        cc = c - first
+        cols[cc] = j
+        h[cc, 0] = hxx
+        h[cc, 1] = hxy
+        h[cc, 2] = hyy
+    return energy, gx1, gy1, hxx1, hxy1, hyy1
 
 
 @njit
@@ -187,41 +230,58 @@ def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k):
         amplitude: the law's amplitude of the pair of beams (``law.amplitude``).
         m, q_reg, cutoff: the coarse-grained exponent, regularisation gap and cutoff
             (unused by the penalty).
+
+    In three passes: the pairs within the law's reach, row by row; the law at all of
+    them at once; the sums and lifts row by row, each row's pairs in the order of j.
     """
     o = 2 * X1.shape[0]
-    ns2 = R2.shape[0]
+    ns1, ns2 = R1.shape[0], R2.shape[0]
     f[:] = 0.0
     k[:, :] = 0.0
-    p1 = np.empty((R1.shape[0], 2))
+    p1 = np.empty((ns1, 2))
     p2 = np.empty((ns2, 2))
     _points(R1, X1, p1)
     _points(R2, X2, p2)
     lo_x, lo_y, hi_x, hi_y = bounding_box(p2)
+    boxes2 = np.empty(((ns2 + CHUNK - 1) // CHUNK, 4))
+    chunk_boxes(p2, boxes2)
     reach = pair_reach(law, R12, cutoff)
     reach2 = reach * reach * _REACH_MARGIN
+    # the pairs within reach: row i's are rows[i]..rows[i + 1] - 1
+    capacity = ns1 * ns2
+    js = np.empty(capacity, dtype=np.int64)
+    r = np.empty((capacity, 2))
+    sq = np.empty(capacity)
+    rows = np.empty(ns1 + 1, dtype=np.int64)
+    count = 0
+    for i in range(ns1):
+        rows[i] = count
+        px, py = p1[i, 0], p1[i, 1]
+        if point_box_gap2(px, py, lo_x, lo_y, hi_x, hi_y) < reach2:  # else beyond the reach
+            count = _row_within_reach(px, py, p2, boxes2, W[i], reach2, js, r, sq, count)
+    rows[ns1] = count
+    phi, d1, d2 = np.empty(count), np.empty(count), np.empty(count)
+    pair_laws(law, sq, count, R12, amplitude, m, q_reg, cutoff, phi, d1, d2)
     # per point j of element 2: the sums over i of (gx, gy, hxx, hxy, hyy)
     sums2 = np.zeros((ns2, 5))
     active2 = np.zeros(ns2, dtype=np.bool_)
     cols = np.empty(ns2, dtype=np.int64)
     h = np.empty((ns2, 3))
     energy = 0.0
-    for i in range(R1.shape[0]):
-        px, py = p1[i, 0], p1[i, 1]
-        if _box_gap2(px, py, lo_x, lo_y, hi_x, hi_y) >= reach2:
-            continue  # the whole row is beyond the reach
-        e, gx, gy, hxx, hxy, hyy, count = _row_pairs(law, px, py, p2, W[i], reach2, R12,
-                                                     amplitude, m, q_reg, cutoff, sums2,
-                                                     cols, h)
-        if count == 0:
+    for i in range(ns1):
+        first, last = rows[i], rows[i + 1]
+        if last == first:
             continue
+        e, gx, gy, hxx, hxy, hyy = _row_sums(W[i], js, r, phi, d1, d2, first, last, sums2,
+                                             cols, h)
         energy += e
-        for jj in range(count):
+        for jj in range(last - first):
             active2[cols[jj]] = True
         for a in range(X1.shape[0]):
             f[2 * a] += R1[i, a] * gx
             f[2 * a + 1] += R1[i, a] * gy
         _add_diagonal_block(k, 0, R1[i], hxx, hxy, hyy)
-        _add_coupling_row(k, o, R1[i], R2, cols, h, count)
+        _add_coupling_row(k, o, R1[i], R2, cols, h, last - first)
     _add_second_element(f, k, o, R2, sums2, active2)
     for a in range(o):  # the lower coupling block is the transpose of the upper one
         for b in range(o, k.shape[0]):

@@ -48,11 +48,14 @@ from typing import NamedTuple
 import numpy as np
 
 from beamcontact._native import njit, njit_parallel, prange
-from beamcontact.contact.blocks_native import bounding_box
+from beamcontact.contact.blocks_native import bounding_box, point_box_gap2
 from beamcontact.dynamics.control import ADVANCE_ACCEPT, ADVANCE_FRACTION
 
 # the tie rule of point_weights_on_device: two gaps are equal within RTOL max(1, |q|)
 RTOL = 1e-9
+# a margin on squared distances compared with a squared limit: s >= limit^2 (1 + 1e-12)
+# in floating point means sqrt(s) >= limit after rounding (as blocks_native's reach)
+_SQUARE_MARGIN = 1.0 + 1e-12
 # the JAX element_boxes masks the padding control points with the largest float, not inf
 _BIG = float(np.finfo(np.float64).max)
 
@@ -405,18 +408,27 @@ def _near_flags(P, box, pairs, limit, beam, allowed, s, exclusion):
     """Whether each block of ``pairs`` has a point pair of P closer than ``limit``."""
     ns = P.shape[1]
     keep = np.zeros(pairs.shape[0], dtype=np.bool_)
+    # a squared distance at or above this has d >= limit after rounding: no square root
+    # for such a pair, and a row whose point is that far from the other element's box is
+    # skipped whole
+    far2 = limit * limit * _SQUARE_MARGIN
     for c in prange(pairs.shape[0]):
         e1, e2 = pairs[c, 0], pairs[c, 1]
         if _box_distance(box[e1], box[e2]) >= limit:
             continue
         whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
+        b = box[e2]
         found = False
         for i in range(ns):
+            px, py = P[e1, i, 0], P[e1, i, 1]
+            if point_box_gap2(px, py, b[0], b[1], b[2], b[3]) >= far2:
+                continue
             for j in range(ns):
-                rx = P[e1, i, 0] - P[e2, j, 0]
-                ry = P[e1, i, 1] - P[e2, j, 1]
+                rx = px - P[e2, j, 0]
+                ry = py - P[e2, j, 1]
+                sq = rx * rx + ry * ry
                 # the JAX twin's min(d) < limit, d = inf for pairs that may not interact
-                if (math.sqrt(rx * rx + ry * ry) < limit
+                if (sq < far2 and math.sqrt(sq) < limit
                         and (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2,
                                                        i, j))):
                     found = True
@@ -882,16 +894,20 @@ def _block_missed(c, missing, gap, pairs, P, near, frozen, radius, interaction, 
     if near[c] - r12 >= gap and not (check and near[c] < interaction):
         return False, gap
     whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
-    nearest = math.inf
+    # the smallest squared distance first, one square root after: the square root and
+    # d - r12 are monotone in floating point too, so the nearest d and the smallest gap
+    # are the numbers that a root per pair would give
+    nearest2 = math.inf
     for i in range(ns):
         for j in range(ns):
             rx = P[e1, i, 0] - P[e2, j, 0]
             ry = P[e1, i, 1] - P[e2, j, 1]
-            d = math.sqrt(rx * rx + ry * ry)
-            if not (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)):
-                d = math.inf
-            nearest = min(nearest, d)
-            gap = min(gap, d - r12)
+            sq = rx * rx + ry * ry
+            if sq < nearest2 and (whole or _point_may_touch(beam, allowed, s, exclusion,
+                                                            e1, e2, i, j)):
+                nearest2 = sq
+    nearest = math.sqrt(nearest2)
+    gap = min(gap, nearest - r12)
     return check and nearest < interaction, gap
 
 

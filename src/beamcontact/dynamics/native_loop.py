@@ -51,14 +51,16 @@ BUDGET, DONE, STOPPED = range(3)
 
 
 @njit
-def _same_set(pairs, W, known_pairs, known_W):
-    """Whether two frozen sets are the same blocks with the same weights."""
+def _same_set(pairs, W, known_pairs, known_W, weights_of_pairs):
+    """Whether two frozen sets are the same blocks with the same weights
+    (``weights_of_pairs``: the weights are a function of the blocks, as an integrated
+    law's arc-length weights, and are not compared)."""
     if pairs.shape != known_pairs.shape or W.shape != known_W.shape:
         return False
     for p in range(pairs.shape[0]):
         if pairs[p, 0] != known_pairs[p, 0] or pairs[p, 1] != known_pairs[p, 1]:
             return False
-    return np.array_equal(W, known_W)
+    return weights_of_pairs or np.array_equal(W, known_W)
 
 
 @njit
@@ -89,6 +91,8 @@ def run(nm, ne, law, has_contact, system, no_contact, newton, ctl, limits, u, v,
     # the contact energy at the current state of the sets evaluated there (NaN: none)
     known_pairs, known_W, known_e = no_contact[2], no_contact[3], np.nan
     tried_pairs, tried_W, tried_e = no_contact[2], no_contact[3], np.nan
+    # an integrated law's weights follow from its blocks (step_set_native.frozen_set_at)
+    integrated = not (law.points or law.zones)
     made[0] = made[1] = 0
     while made[1] < max_attempts:
         if not unfinished(ctl[T], limits):
@@ -101,9 +105,9 @@ def run(nm, ne, law, has_contact, system, no_contact, newton, ctl, limits, u, v,
             pairs, W, count, h_used = ssn.step_set_at(x0, x_pred, v.reshape(-1, 2),
                                                       a.reshape(-1, 2), h, motion, ne, law)
             frozen = ssn.frozen_blocks(ne, law, pairs, W)
-            if _same_set(pairs, W, known_pairs, known_W):
+            if _same_set(pairs, W, known_pairs, known_W, integrated):
                 e_before = known_e
-            elif _same_set(pairs, W, tried_pairs, tried_W):
+            elif _same_set(pairs, W, tried_pairs, tried_W, integrated):
                 e_before = tried_e
         attempt(nm, frozen, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s,
                 kl, ku, u, v, a, f_pot, theta, tangent, h_used, alpha, rtol, utol, dt_ref,

@@ -115,6 +115,60 @@ def cg_pair_s(s, R12, amplitude, m, q_reg, cutoff):
 
 
 @njit
+def cg_pair_s_many(s, count, R12, amplitude, m, q_reg, cutoff, f, f1, f2):
+    """:func:`cg_pair_s` of each of s[:count] into f, f1, f2 (f, df/ds, d2f/ds2), bitwise
+    the same numbers, computed pass by pass over the arrays so that the compiler can
+    use SIMD instructions: the square roots and divisions of the law are most of the
+    cost of a coarse-grained block.
+
+    Every element takes the operations of :func:`cg_pair_s`'s common branch (q > q_reg,
+    d < cutoff, s above the floor, an exponent 2 n whole and below 64) in the same order;
+    the elements of any other branch, and every element when the exponent is not of
+    that kind, are then taken by :func:`cg_pair_s` itself."""
+    n = m - 3.5
+    twice = 2.0 * n
+    if twice != math.floor(twice) or not 0.0 <= twice < 64.0:
+        for i in range(count):
+            f[i], f1[i], f2[i] = cg_pair_s(s[i], R12, amplitude, m, q_reg, cutoff)
+        return
+    d = np.empty(count)
+    inv = np.empty(count)
+    base = np.empty(count)
+    for i in range(count):
+        si = s[i]
+        di = math.sqrt(si if si > S_FLOOR else S_FLOOR)
+        d[i] = di
+        inv[i] = 1.0 / (di - R12)
+        f[i] = 1.0
+    for i in range(count):
+        base[i] = inv[i]
+    # inverse_power's repeated squaring, one pass per bit
+    k = int(n)
+    while k:
+        if k & 1:
+            for i in range(count):
+                f[i] *= base[i]
+        for i in range(count):
+            base[i] *= base[i]
+        k >>= 1
+    half = twice != 2.0 * math.floor(n)
+    for i in range(count):
+        p = f[i]
+        if half:
+            p *= math.sqrt(inv[i])
+        p = amplitude * p
+        d1 = -n * p * inv[i]
+        d2 = -(n + 1.0) * d1 * inv[i]
+        inv_d = 1.0 / d[i]
+        f[i] = p
+        f1[i] = 0.5 * d1 * inv_d
+        f2[i] = 0.25 * (d2 - d1 * inv_d) * inv_d * inv_d
+    for i in range(count):  # the other branches, element by element
+        if not (s[i] > S_FLOOR and d[i] < cutoff and d[i] - R12 > q_reg):
+            f[i], f1[i], f2[i] = cg_pair_s(s[i], R12, amplitude, m, q_reg, cutoff)
+
+
+@njit
 def s_derivatives(s, d, phi, d1, d2):
     """(f, f', f'') in s of f(s) = phi(d), d = sqrt(max(s, S_FLOOR)), from (phi, dphi/dd,
     d2phi/dd2): f' = phi' / (2 d), f'' = (phi'' - phi' / d) / (4 d^2), and no derivatives
