@@ -195,9 +195,12 @@ def _compare_block(x, ce, W, law, law_code, amp, m=0.0, q_reg=0.0, cutoff=0.0):
     R = np.asarray(ce.R)
     W_native = (np.outer(np.asarray(ce.w)[0], np.asarray(ce.w)[1]) if W is None
                 else np.asarray(W))
-    e, f, k = bn.block_forces(law_code, x[:N_LOC], x[N_LOC:], R[0], R[1], W_native,
-                              float(ce.radius[0] + ce.radius[1]), amp, m, q_reg, cutoff)
+    args = (law_code, x[:N_LOC], x[N_LOC:], R[0], R[1], W_native,
+            float(ce.radius[0] + ce.radius[1]), amp, m, q_reg, cutoff)
+    e, f, k = bn.block_forces(*args)
     assert np.abs(k_jax).max() > 0.0 and np.array_equal(k, k.T)
+    # the energy alone (the energy account's evaluations) is the same sum, bit for bit
+    assert bn.block_energy(*args) == e
     return (abs(e - e_jax) / abs(e_jax), np.abs(f - f_jax).max() / np.abs(f_jax).max(),
             np.abs(k - k_jax).max() / np.abs(k_jax).max())
 

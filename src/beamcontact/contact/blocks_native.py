@@ -216,9 +216,61 @@ def _row_sums(Wi, js, r, phi, d1, d2, first, last, sums2, cols, h):
 
 
 @njit
-def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k):
+def _pairs_within_reach(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff):
+    """The point pairs of a block that its law sees and the law's values there, as
+    (rows, j, r, phi, dphi/ds, d2phi/ds2): row i's pairs are rows[i]..rows[i + 1] - 1,
+    in the order of j (arguments as :func:`block_into`)."""
+    ns1, ns2 = R1.shape[0], R2.shape[0]
+    p1 = np.empty((ns1, 2))
+    p2 = np.empty((ns2, 2))
+    _points(R1, X1, p1)
+    _points(R2, X2, p2)
+    lo_x, lo_y, hi_x, hi_y = bounding_box(p2)
+    boxes2 = np.empty(((ns2 + CHUNK - 1) // CHUNK, 4))
+    chunk_boxes(p2, boxes2)
+    reach = pair_reach(law, R12, cutoff)
+    reach2 = reach * reach * _REACH_MARGIN
+    capacity = ns1 * ns2
+    js = np.empty(capacity, dtype=np.int64)
+    r = np.empty((capacity, 2))
+    sq = np.empty(capacity)
+    rows = np.empty(ns1 + 1, dtype=np.int64)
+    count = 0
+    for i in range(ns1):
+        rows[i] = count
+        px, py = p1[i, 0], p1[i, 1]
+        if point_box_gap2(px, py, lo_x, lo_y, hi_x, hi_y) < reach2:  # else beyond reach
+            count = _row_within_reach(px, py, p2, boxes2, W[i], reach2, js, r, sq, count)
+    rows[ns1] = count
+    phi, d1, d2 = np.empty(count), np.empty(count), np.empty(count)
+    pair_laws(law, sq, count, R12, amplitude, m, q_reg, cutoff, phi, d1, d2)
+    return rows, js, r, phi, d1, d2
+
+
+@njit
+def block_energy(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff):
+    """The energy of one element pair alone (arguments as :func:`block_into`): the same
+    sums, bit for bit, without the gradient and Hessian."""
+    rows, js, _, phi, _, _ = _pairs_within_reach(law, X1, X2, R1, R2, W, R12, amplitude, m,
+                                                 q_reg, cutoff)
+    energy = 0.0
+    for i in range(R1.shape[0]):
+        first, last = rows[i], rows[i + 1]
+        if last == first:
+            continue
+        e = 0.0
+        Wi = W[i]
+        for c in range(first, last):
+            e += Wi[js[c]] * phi[c]
+        energy += e
+    return energy
+
+
+@njit
+def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k, tangent=True):
     """Energy of one element pair; its gradient into f (2 (n1 + n2),) and Hessian into k
-    (square), both overwritten, in the layout of the module docstring.
+    (square), both overwritten, in the layout of the module docstring (``tangent`` False:
+    k is left alone, the energy and gradient are the same numbers).
 
     Arguments, in call order:
         law: LAW_CG (eq. 9) or LAW_PENALTY (eq. 3).
@@ -237,31 +289,10 @@ def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k):
     o = 2 * X1.shape[0]
     ns1, ns2 = R1.shape[0], R2.shape[0]
     f[:] = 0.0
-    k[:, :] = 0.0
-    p1 = np.empty((ns1, 2))
-    p2 = np.empty((ns2, 2))
-    _points(R1, X1, p1)
-    _points(R2, X2, p2)
-    lo_x, lo_y, hi_x, hi_y = bounding_box(p2)
-    boxes2 = np.empty(((ns2 + CHUNK - 1) // CHUNK, 4))
-    chunk_boxes(p2, boxes2)
-    reach = pair_reach(law, R12, cutoff)
-    reach2 = reach * reach * _REACH_MARGIN
-    # the pairs within reach: row i's are rows[i]..rows[i + 1] - 1
-    capacity = ns1 * ns2
-    js = np.empty(capacity, dtype=np.int64)
-    r = np.empty((capacity, 2))
-    sq = np.empty(capacity)
-    rows = np.empty(ns1 + 1, dtype=np.int64)
-    count = 0
-    for i in range(ns1):
-        rows[i] = count
-        px, py = p1[i, 0], p1[i, 1]
-        if point_box_gap2(px, py, lo_x, lo_y, hi_x, hi_y) < reach2:  # else beyond the reach
-            count = _row_within_reach(px, py, p2, boxes2, W[i], reach2, js, r, sq, count)
-    rows[ns1] = count
-    phi, d1, d2 = np.empty(count), np.empty(count), np.empty(count)
-    pair_laws(law, sq, count, R12, amplitude, m, q_reg, cutoff, phi, d1, d2)
+    if tangent:
+        k[:, :] = 0.0
+    rows, js, r, phi, d1, d2 = _pairs_within_reach(law, X1, X2, R1, R2, W, R12, amplitude, m,
+                                                   q_reg, cutoff)
     # per point j of element 2: the sums over i of (gx, gy, hxx, hxy, hyy)
     sums2 = np.zeros((ns2, 5))
     active2 = np.zeros(ns2, dtype=np.bool_)
@@ -280,35 +311,41 @@ def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k):
         for a in range(X1.shape[0]):
             f[2 * a] += R1[i, a] * gx
             f[2 * a + 1] += R1[i, a] * gy
-        _add_diagonal_block(k, 0, R1[i], hxx, hxy, hyy)
-        _add_coupling_row(k, o, R1[i], R2, cols, h, last - first)
-    _add_second_element(f, k, o, R2, sums2, active2)
-    for a in range(o):  # the lower coupling block is the transpose of the upper one
-        for b in range(o, k.shape[0]):
-            k[b, a] = k[a, b]
+        if tangent:
+            _add_diagonal_block(k, 0, R1[i], hxx, hxy, hyy)
+            _add_coupling_row(k, o, R1[i], R2, cols, h, last - first)
+    _add_second_element(f, k, o, R2, sums2, active2, tangent)
+    if tangent:
+        for a in range(o):  # the lower coupling block is the transpose of the upper one
+            for b in range(o, k.shape[0]):
+                k[b, a] = k[a, b]
     return energy
 
 
 @njit
-def _add_second_element(f, k, o, R2, sums2, active2):
-    """Element 2's gradient -sum_j R2_j g_j and diagonal block sum_j R2_j R2_j^T H_j, from
-    the per-point sums (gx, gy, hxx, hxy, hyy) over the pairs of its ``active2`` points."""
+def _add_second_element(f, k, o, R2, sums2, active2, tangent):
+    """Element 2's gradient -sum_j R2_j g_j and (``tangent``) diagonal block
+    sum_j R2_j R2_j^T H_j, from the per-point sums (gx, gy, hxx, hxy, hyy) over the pairs
+    of its ``active2`` points."""
     for j in range(R2.shape[0]):
         if not active2[j]:
             continue
         for b in range(R2.shape[1]):
             f[o + 2 * b] -= R2[j, b] * sums2[j, 0]
             f[o + 2 * b + 1] -= R2[j, b] * sums2[j, 1]
-        _add_diagonal_block(k, o, R2[j], sums2[j, 2], sums2[j, 3], sums2[j, 4])
+        if tangent:
+            _add_diagonal_block(k, o, R2[j], sums2[j, 2], sums2[j, 3], sums2[j, 4])
 
 
 @njit_parallel
-def blocks_into(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, F, K, energies):
+def blocks_into(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, F, K, energies,
+                tangent=True):
     """Every element pair of a frozen set at once, on the cores: block p = pairs[p] of
     elements with control points conn[e] at x (n_cp, 2) and basis rows R[e], weights
     W[p], R12[p] and amplitudes[p] (:func:`block_into`) into F[p] (its gradient), K[p]
     (its Hessian) and energies[p]. Each block is computed whole by one thread, exactly
-    as alone, so the caller's sums in block order do not depend on the threads."""
+    as alone, so the caller's sums in block order do not depend on the threads
+    (``tangent`` False: K is left alone)."""
     n_loc = conn.shape[1]
     for p in prange(pairs.shape[0]):
         e1, e2 = pairs[p, 0], pairs[p, 1]
@@ -318,7 +355,23 @@ def blocks_into(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, F,
             X1[a, 0], X1[a, 1] = x[c1, 0], x[c1, 1]
             X2[a, 0], X2[a, 1] = x[c2, 0], x[c2, 1]
         energies[p] = block_into(law, X1, X2, R[e1], R[e2], W[p], R12[p], amplitudes[p], m,
-                                 q_reg, cutoff, F[p], K[p])
+                                 q_reg, cutoff, F[p], K[p], tangent)
+
+
+@njit_parallel
+def blocks_energy(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, energies):
+    """The energy of every element pair of a frozen set (:func:`block_energy`) into
+    energies[p], on the cores, each block whole on one thread (as :func:`blocks_into`)."""
+    n_loc = conn.shape[1]
+    for p in prange(pairs.shape[0]):
+        e1, e2 = pairs[p, 0], pairs[p, 1]
+        X1, X2 = np.empty((n_loc, 2)), np.empty((n_loc, 2))
+        for a in range(n_loc):
+            c1, c2 = conn[e1, a], conn[e2, a]
+            X1[a, 0], X1[a, 1] = x[c1, 0], x[c1, 1]
+            X2[a, 0], X2[a, 1] = x[c2, 0], x[c2, 1]
+        energies[p] = block_energy(law, X1, X2, R[e1], R[e2], W[p], R12[p], amplitudes[p], m,
+                                   q_reg, cutoff)
 
 
 @njit

@@ -245,11 +245,17 @@ def initial_acceleration(nm, contact, u, v, theta, tangent, position, positions,
 
 @njit
 def contact_energy(nm, contact, u):
-    """The energy of the frozen contact set at displacement u."""
-    n = u.shape[0]
-    no = np.empty((0, 0))
-    return contact_blocks(nmod._positions(nm.x_ref, u), *contact, 0.0, np.empty(0, np.int64),
-                          no, no, no, no, -1, -1, np.zeros(n), np.zeros(n))
+    """The energy of the frozen contact set at displacement u: the sum in block order of
+    :func:`~beamcontact.contact.blocks_native.block_energy`, the energy that
+    :func:`contact_blocks` returns, bit for bit, without its forces and tangent."""
+    ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff = contact
+    energies = np.empty(pairs.shape[0])
+    blocks_native.blocks_energy(nmod._positions(nm.x_ref, u), ce_conn, ce_R, pairs, W, R12,
+                                amps, law, m, q_reg, cutoff, energies)
+    energy = 0.0
+    for p in range(pairs.shape[0]):
+        energy += energies[p]
+    return energy
 
 
 @njit
@@ -266,8 +272,8 @@ def contact_blocks(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
                    position, band, B, C, D, kl, ku, r_pot, r):
     """The frozen contact set at control points x (n_cp, 2): its energy (returned), its
     force added to r_pot and, times ``scale`` (1 + alpha), to r (both global), and its
-    tangent times ``scale`` added to the bordered matrix (kl = -1: no tangent, for the
-    energy alone). The blocks
+    tangent times ``scale`` added to the bordered matrix (kl = -1: no tangent, not even
+    within the blocks: the forces alone, for the initial acceleration). The blocks
     (:func:`~beamcontact.contact.blocks_native.block_into`) are the JAX twin's
     (:func:`~beamcontact.contact.blocks.block_forces`)."""
     n_loc = ce_conn.shape[1]
@@ -275,7 +281,7 @@ def contact_blocks(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
     n_pairs = pairs.shape[0]
     F, K, energies = np.empty((n_pairs, k2)), np.empty((n_pairs, k2, k2)), np.empty(n_pairs)
     blocks_native.blocks_into(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
-                              F, K, energies)
+                              F, K, energies, kl >= 0)
     dofs = np.empty(k2, dtype=np.int64)
     energy = 0.0
     for p in range(n_pairs):
