@@ -337,6 +337,15 @@ def _add_second_element(f, k, o, R2, sums2, active2, tangent):
             _add_diagonal_block(k, o, R2[j], sums2[j, 2], sums2[j, 3], sums2[j, 4])
 
 
+@njit
+def _element_points(x, conn, e):
+    """The control points (n_loc, 2) of element e: rows conn[e] of x."""
+    X = np.empty((conn.shape[1], 2))
+    for a in range(conn.shape[1]):
+        X[a, 0], X[a, 1] = x[conn[e, a], 0], x[conn[e, a], 1]
+    return X
+
+
 @njit_parallel
 def blocks_into(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, F, K, energies,
                 tangent=True):
@@ -346,14 +355,9 @@ def blocks_into(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, F,
     (its Hessian) and energies[p]. Each block is computed whole by one thread, exactly
     as alone, so the caller's sums in block order do not depend on the threads
     (``tangent`` False: K is left alone)."""
-    n_loc = conn.shape[1]
     for p in prange(pairs.shape[0]):
         e1, e2 = pairs[p, 0], pairs[p, 1]
-        X1, X2 = np.empty((n_loc, 2)), np.empty((n_loc, 2))
-        for a in range(n_loc):
-            c1, c2 = conn[e1, a], conn[e2, a]
-            X1[a, 0], X1[a, 1] = x[c1, 0], x[c1, 1]
-            X2[a, 0], X2[a, 1] = x[c2, 0], x[c2, 1]
+        X1, X2 = _element_points(x, conn, e1), _element_points(x, conn, e2)
         energies[p] = block_into(law, X1, X2, R[e1], R[e2], W[p], R12[p], amplitudes[p], m,
                                  q_reg, cutoff, F[p], K[p], tangent)
 
@@ -362,14 +366,9 @@ def blocks_into(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, F,
 def blocks_energy(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, energies):
     """The energy of every element pair of a frozen set (:func:`block_energy`) into
     energies[p], on the cores, each block whole on one thread (as :func:`blocks_into`)."""
-    n_loc = conn.shape[1]
     for p in prange(pairs.shape[0]):
         e1, e2 = pairs[p, 0], pairs[p, 1]
-        X1, X2 = np.empty((n_loc, 2)), np.empty((n_loc, 2))
-        for a in range(n_loc):
-            c1, c2 = conn[e1, a], conn[e2, a]
-            X1[a, 0], X1[a, 1] = x[c1, 0], x[c1, 1]
-            X2[a, 0], X2[a, 1] = x[c2, 0], x[c2, 1]
+        X1, X2 = _element_points(x, conn, e1), _element_points(x, conn, e2)
         energies[p] = block_energy(law, X1, X2, R[e1], R[e2], W[p], R12[p], amplitudes[p], m,
                                    q_reg, cutoff)
 
