@@ -70,13 +70,13 @@ class OutputPoints:
         """history.csv columns of the points."""
         return [f"{n}_{c}" for n in self.names for c in ("x", "y", "ux", "uy")]
 
-    def values(self, x: np.ndarray) -> dict:
-        """Positions and displacements of every point for control points x."""
-        row = {}
-        for n, (idx, R), ref in zip(self.names, self._samplers, self._ref, strict=True):
+    def values(self, x: np.ndarray) -> list[float]:
+        """Positions and displacements of every point for control points x, in the order
+        of :meth:`columns`."""
+        row = []
+        for (idx, R), ref in zip(self._samplers, self._ref, strict=True):
             p = R @ x[idx]
-            row.update({f"{n}_x": p[0], f"{n}_y": p[1], f"{n}_ux": p[0] - ref[0],
-                        f"{n}_uy": p[1] - ref[1]})
+            row += [p[0], p[1], p[0] - ref[0], p[1] - ref[1]]
         return row
 
 
@@ -133,6 +133,9 @@ class RunRecord:
         self.abscissa = abscissa
         self.columns = ["step", abscissa, *self.points.columns(), *extra_columns,
                         "newton_iters", "cutbacks"] + (["dt"] if abscissa == "t" else [])
+        # the columns that a row takes from its diagnostics and from its keywords
+        self._value_columns = list(extra_columns)
+        self._extra_columns = ["dt"] if abscissa == "t" else []
         self.maps = [(polyline_matrix(b, case.output.samples_per_element),
                       slice(b.offset, b.offset + b.n_cp)) for b in disc.beams]
         self._rows: list[np.ndarray] = []
@@ -173,10 +176,12 @@ class RunRecord:
 
     def row(self, step: int, parameter: float, u, values: dict, iterations: int,
             cutbacks: int, **extra) -> None:
-        """Append one history row."""
-        row = {"step": step, self.abscissa: parameter, **self.points.values(self.x(u)),
-               **values, "newton_iters": iterations, "cutbacks": cutbacks, **extra}
-        self._rows.append(np.array([float(row[c]) for c in self.columns]))
+        """Append one history row (``values`` holds the diagnostics' columns, ``extra`` the
+        step "dt" in dynamics; a missing one is a KeyError: the header is fixed)."""
+        row = [step, parameter, *self.points.values(self.x(u)),
+               *[values[c] for c in self._value_columns], iterations, cutbacks,
+               *[extra[c] for c in self._extra_columns]]
+        self._rows.append(np.array([float(v) for v in row]))
         if self._writes():
             with writing(self.out_dir / "history.csv", self):
                 self.files.history.write(row)

@@ -63,9 +63,11 @@ class HistoryWriter:
         self._csv.writerows(kept)
         self._file.flush()
 
-    def write(self, row: dict) -> None:
-        """Append one row; missing columns are an error (the header is fixed)."""
-        self._csv.writerow([_fmt(row[c]) for c in self.columns])
+    def write(self, row: list) -> None:
+        """Append one row, its values in the order of the columns."""
+        if len(row) != len(self.columns):
+            raise ValueError(f"a row of {len(row)} values for {len(self.columns)} columns")
+        self._csv.writerow([_fmt(v) for v in row])
         self._file.flush()
 
     def close(self) -> None:
@@ -74,7 +76,10 @@ class HistoryWriter:
 
 
 def _fmt(v) -> str:
-    if isinstance(v, float | np.floating):
+    """A float as its shortest repr (it reads back exactly), anything else as str."""
+    if type(v) is float:
+        return repr(v)
+    if isinstance(v, np.floating):
         return repr(float(v))
     return str(v)
 
@@ -164,7 +169,7 @@ class StateWriter:
         st.create_dataset("step", (0,), maxshape=(None,), dtype="i8")
         st.create_dataset("parameter", (0,), maxshape=(None,), dtype="f8")
         st.create_dataset("u", (0, n_dof), maxshape=(None, n_dof), dtype="f8",
-                          chunks=(1, n_dof))
+                          chunks=_row_chunks(n_dof))
         self._h5.flush()
 
     def write(self, step: int, parameter: float, u: np.ndarray, **extra: np.ndarray) -> None:
@@ -204,8 +209,10 @@ class StateWriter:
             for name in self._pending[0]:
                 values = np.stack([p[name] for p in self._pending])
                 if name not in st:
-                    st.create_dataset(name, (0, *values.shape[1:]),
-                                      maxshape=(None, *values.shape[1:]), dtype=values.dtype)
+                    shape = values.shape[1:]
+                    st.create_dataset(name, (0, *shape), maxshape=(None, *shape),
+                                      dtype=values.dtype,
+                                      chunks=_row_chunks(*shape))
                 st[name].resize(n + k, axis=0)
                 st[name][n:] = values
             self._pending.clear()
@@ -222,6 +229,16 @@ class StateWriter:
             self.flush()
         finally:
             self._h5.close()
+
+
+def _row_chunks(*shape: int) -> tuple[int, ...] | bool:
+    """HDF5 chunks of a dataset of rows of ``shape`` that grows by rows: as many rows as
+    fill about 64 kB (at least one); h5py's own choice for empty rows. A chunk per row
+    made every batch of states thousands of chunk writes."""
+    size = int(np.prod(shape))
+    if size == 0:
+        return True
+    return (max(1, 2**16 // (8 * size)), *shape)
 
 
 def read_last_state(path: Path) -> tuple[str, dict[str, np.ndarray]]:
