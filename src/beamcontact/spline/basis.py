@@ -8,6 +8,9 @@ evaluated once at the quadrature points (Lagrangian parametrisation).
 
 import numpy as np
 
+# the most parameters that nurbs_basis_derivatives evaluates in one piece
+CHUNK = 4096
+
 
 def find_span(knots: np.ndarray, degree: int, u):
     """Knot span index i with knots[i] <= u < knots[i+1] (P&T A2.1), for a scalar u (an
@@ -89,6 +92,14 @@ def nurbs_basis_derivatives(knots: np.ndarray, degree: int, weights: np.ndarray,
     """
     scalar = np.ndim(u) == 0
     u = np.atleast_1d(np.asarray(u, float))
+    if len(u) > CHUNK:
+        # in pieces that stay in the cache: the work arrays of A2.3 are (m, p + 1, p + 1)
+        # and their columns strided, so the whole of a large m (the contact points of a
+        # 10 000-element beam) ran from memory, many times slower; the same arithmetic
+        parts = [nurbs_basis_derivatives(knots, degree, weights, u[i:i + CHUNK])
+                 for i in range(0, len(u), CHUNK)]
+        return (np.concatenate([f for f, _ in parts]),
+                np.concatenate([d for _, d in parts]))
     span = find_span(knots, degree, u)
     first = span - degree
     N = basis_derivatives(knots, degree, span, u, min(2, degree))
