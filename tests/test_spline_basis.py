@@ -69,6 +69,12 @@ def test_interpolation_at_triple_knot_paper_fig4():
     c = NurbsCurve(3, FIG4_KNOTS, pts, np.ones(9))
     np.testing.assert_allclose(c.evaluate([0.75])[0, 0], pts[5], atol=1e-14)
     np.testing.assert_allclose(c.evaluate([0.0, 1.0])[0], pts[[0, -1]], atol=1e-14)
+    # the basis of Fig. 4 (examples/studies/figures_4_6.py draws it): non-negative, a
+    # partition of unity, and N_6(0.75) = 1 exactly where the knot is triple
+    for u in np.linspace(0.0, 1.0, 81):
+        values = _all_basis(FIG4_KNOTS, 3, u)[0]
+        assert np.all(values >= 0.0) and abs(values.sum() - 1.0) < 1e-14
+    assert _all_basis(FIG4_KNOTS, 3, 0.75)[0][5] == 1.0
 
 
 def test_find_span_ends():
