@@ -44,6 +44,7 @@ from beamcontact.dynamics.report import (
     V_CONTACT,
     V_EC_BEFORE,
     V_GAP,
+    V_KIN,
 )
 
 # why a call returned
@@ -91,6 +92,8 @@ def run(nm, ne, law, has_contact, system, no_contact, newton, ctl, limits, u, v,
     # the contact energy at the current state of the sets evaluated there (NaN: none)
     known_pairs, known_W, known_e = no_contact[2], no_contact[3], np.nan
     tried_pairs, tried_W, tried_e = no_contact[2], no_contact[3], np.nan
+    # the kinetic energy of the current state, once an accepted step has computed it
+    e_kin = np.nan
     # an integrated law's weights follow from its blocks (step_set_native.frozen_set_at)
     integrated = not (law.points or law.zones)
     made[0] = made[1] = 0
@@ -111,8 +114,8 @@ def run(nm, ne, law, has_contact, system, no_contact, newton, ctl, limits, u, v,
                 e_before = tried_e
         attempt(nm, frozen, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s,
                 kl, ku, u, v, a, f_pot, theta, tangent, h_used, alpha, rtol, utol, dt_ref,
-                total_mass, max_iterations, diverge_after, e_before, nu, nv, na, nf, ntheta,
-                ntangent, values, counts)
+                total_mass, max_iterations, diverge_after, e_before, e_kin, nu, nv, na, nf,
+                ntheta, ntangent, values, counts)
         made[1] += 1
         if has_contact:
             if np.isnan(e_before):
@@ -133,6 +136,7 @@ def run(nm, ne, law, has_contact, system, no_contact, newton, ctl, limits, u, v,
             continue
         u[:], v[:], a[:], f_pot[:] = nu, nv, na, nf
         theta[:], tangent[:] = ntheta, ntangent
+        e_kin = values[V_KIN]
         if has_contact:
             known_pairs, known_W, known_e = frozen[2], frozen[3], values[V_CONTACT]
             tried_e = np.nan

@@ -142,8 +142,8 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
 @njit
 def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s, kl,
             ku, u_n, v_n, a_n, f_pot_n, theta_n, t_n, h, alpha, rtol, utol, dt_ref,
-            total_mass, max_iterations, diverge_after, e_contact_n, u, v, a, f_pot, theta,
-            tangent, values, counts):
+            total_mass, max_iterations, diverge_after, e_contact_n, e_kin_n, u, v, a, f_pot,
+            theta, tangent, values, counts):
     """One attempt at a step h from (u_n, v_n, a_n, f_pot_n, theta_n, t_n) into (u, v, a,
     f_pot, theta, tangent) and the report vectors ``values``, ``counts``
     (:mod:`~beamcontact.dynamics.report`; meaningful state only when converged).
@@ -151,7 +151,8 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     ``contact``: the frozen contact set, (conn, R, pairs, W, R12, amplitudes, law, m,
     q_reg, cutoff) as :func:`contact_blocks` takes them (no pairs: no contact); the step h
     is already shortened by the conservative advancement; ``e_contact_n`` is its energy
-    at u_n when the caller knows it (NaN: computed here). The contact checks after the
+    at u_n and ``e_kin_n`` the kinetic energy of (u_n, v_n) when the caller knows them
+    (NaN: computed here). The contact checks after the
     step (approach, gap, missed blocks) are the caller's."""
     n = u_n.shape[0]
     beta = 0.25 * (1.0 - alpha) ** 2
@@ -191,7 +192,8 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     nmod.update_load_state(nm, u, theta_n, t_n, theta, tangent)
     e_strain, e_gravity, e_ext = nmod.energies(nm, u, 1.0, theta, tangent)
     e_kin, p = nmod.kinetic_energy_momentum(nm, u, v)
-    e_kin_n = nmod.kinetic_energy_momentum(nm, u_n, v_n)[0]
+    if np.isnan(e_kin_n):
+        e_kin_n = nmod.kinetic_energy_momentum(nm, u_n, v_n)[0]
     da_max, forces = 0.0, 0.0
     for i in range(n):
         da_max = max(da_max, abs((a[i] - a_n[i]) * nm.free[i]))
@@ -510,8 +512,8 @@ class NativeEngine:
                 ar.B, ar.C, ar.D, ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u, s.v, s.a, s.f_pot,
                 s.load_state.theta, s.load_state.tangent, h_used, self.alpha,
                 self.options.rtol, self.utol, self.dt_ref, self.total_mass,
-                self.options.max_iterations, DIVERGE_AFTER, e_before, u, v, a, f_pot, theta,
-                tangent, values, counts)
+                self.options.max_iterations, DIVERGE_AFTER, e_before, np.nan, u, v, a, f_pot,
+                theta, tangent, values, counts)
         if has_contact:
             if np.isnan(e_before):
                 self._remember(s.u, frozen, float(values[V_EC_BEFORE]))
