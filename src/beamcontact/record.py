@@ -76,7 +76,7 @@ class OutputPoints:
         row = []
         for (idx, R), ref in zip(self._samplers, self._ref, strict=True):
             p = R @ x[idx]
-            row += [p[0], p[1], p[0] - ref[0], p[1] - ref[1]]
+            row += [float(p[0]), float(p[1]), float(p[0] - ref[0]), float(p[1] - ref[1])]
         return row
 
 
@@ -178,10 +178,11 @@ class RunRecord:
             cutbacks: int, **extra) -> None:
         """Append one history row (``values`` holds the diagnostics' columns, ``extra`` the
         step "dt" in dynamics; a missing one is a KeyError: the header is fixed)."""
-        row = [step, parameter, *self.points.values(self.x(u)),
-               *[values[c] for c in self._value_columns], iterations, cutbacks,
-               *[extra[c] for c in self._extra_columns]]
-        self._rows.append(np.array([float(v) for v in row]))
+        # Python numbers only: history.csv writes them by repr
+        row = [int(step), float(parameter), *self.points.values(self.x(u)),
+               *[float(values[c]) for c in self._value_columns], int(iterations),
+               int(cutbacks), *[float(extra[c]) for c in self._extra_columns]]
+        self._rows.append(np.array(row, dtype=float))
         if self._writes():
             with writing(self.out_dir / "history.csv", self):
                 self.files.history.write(row)

@@ -64,10 +64,12 @@ class HistoryWriter:
         self._file.flush()
 
     def write(self, row: list) -> None:
-        """Append one row, its values in the order of the columns."""
+        """Append one row, its values (Python ints and floats) in the order of the
+        columns: each by its repr, the text that csv.writer gives them, without a call per
+        value."""
         if len(row) != len(self.columns):
             raise ValueError(f"a row of {len(row)} values for {len(self.columns)} columns")
-        self._csv.writerow([_fmt(v) for v in row])
+        self._file.write(",".join(map(repr, row)) + "\n")
         self._file.flush()
 
     def close(self) -> None:
