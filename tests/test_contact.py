@@ -191,12 +191,13 @@ def _brute_force_pairs(x, ce, margin):
 
 @pytest.mark.parametrize("seed, n_beams, spread, self_contact",
                          [(7, 4, 3.0, False), (8, 12, 4.0, False), (9, 30, 6.0, True),
-                          (10, 40, 2.0, True)])
+                          (10, 40, 2.0, True), (11, 30, 3.0, False)])
 def test_broad_phase_equals_brute_force(seed, n_beams, spread, self_contact):
     """The grid search finds exactly the pairs of the all-pairs box test, in the same
     (e1, e2) order, on random configurations (dense ones overflow the first cell
     capacity and grow it); so does the all-pairs path of small models."""
     from beamcontact.contact.broadphase import (
+        ALL_PAIRS_LIMIT,
         SearchCapacity,
         all_candidates,
         all_pair_candidates,
@@ -214,6 +215,8 @@ def test_broad_phase_equals_brute_force(seed, n_beams, spread, self_contact):
     margin = 0.2
     brute = _brute_force_pairs(x, ce, margin)
     assert len(brute) > 0
+    # the host check's list: all pairs up to ALL_PAIRS_LIMIT elements, its grid above
+    assert n_beams < 30 or ce.n_elements > ALL_PAIRS_LIMIT
     assert [tuple(p) for p in all_candidates(x, ce, margin)] == brute
     roomy = SearchCapacity(len(brute) + 5, 512)
     for search in (grid_candidates, all_pair_candidates):

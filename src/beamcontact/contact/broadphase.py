@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._jax import jax, jnp, lazy_jit
+from beamcontact._jax import jax, jnp
 from beamcontact.contact.points import ContactElements
 
 # cells per axis at most (boxes further out share the last one: still found, as the
@@ -169,29 +169,69 @@ def pair_key(e1, e2, n_elements: int):
     return e1 * (n_elements + 1) + e2
 
 
-_candidates = lazy_jit(candidate_pairs, static_argnames=("capacity",))
-
-
 def all_candidates(x, ce: ContactElements, margin: float) -> np.ndarray:
-    """Every candidate pair (P, 2) at x on the host, the capacities grown until the
-    search is complete (for one-off checks such as the initial overlaps). Up to
-    :data:`ALL_PAIRS_LIMIT` elements this is :func:`all_pair_candidates` in NumPy (the
-    same tests on the same numbers, without JAX: what a native run checks)."""
+    """Every candidate pair (P, 2) at x on the host, sorted by (e1, e2), for one-off
+    checks such as the initial overlaps, in NumPy (no JAX program): up to
+    :data:`ALL_PAIRS_LIMIT` elements the tests of :func:`all_pair_candidates`, above it
+    the same boxes on a grid (:func:`host_grid_pairs`); both give the list of the box
+    test of every pair."""
     x = np.asarray(x, dtype=np.float64)
     E = ce.n_elements
+    lo, hi = element_boxes(x, ce, margin, xp=np)
     if E <= ALL_PAIRS_LIMIT:
-        lo, hi = element_boxes(x, ce, margin, xp=np)
         i, j = np.triu_indices(E, k=1)
-        hit = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=-1) & ce.may_touch(i, j, np)
-        return np.stack([i[hit], j[hit]], axis=1)
-    capacity = SearchCapacity(64, 16)
-    limit = max(ce.element_pair_count(), 1)
-    while True:
-        pairs, count, load = jax.device_get(_candidates(jnp.asarray(x), ce,
-                                                        jnp.asarray(margin), capacity))
-        if capacity.fits(int(count), int(load)):
-            return np.asarray(pairs)[: int(count)]
-        capacity = capacity.grown(int(count), int(load), limit)
+    else:
+        beam = np.asarray(ce.beam)
+        i, j = host_grid_pairs(lo, hi, beam, np.diag(np.asarray(ce.allowed)))
+    hit = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=-1) & ce.may_touch(i, j, np)
+    return np.stack([i[hit], j[hit]], axis=1).astype(np.int64)
+
+
+def host_grid_pairs(lo, hi, beam, own) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs (i, j), i < j, sorted, of boxes whose lower corners lie in neighbouring
+    cells (or the same) of a grid as wide as the widest box: a superset of the pairs of
+    boxes that overlap, as :func:`grid_candidates` finds them, in NumPy; pairs on one
+    beam only where ``own[beam]`` (self-contact). The cost grows with the number of
+    boxes and of close pairs, not with E^2 (a check of 20 000 elements was a JAX program
+    compiled again for every growth of its capacities); a cell's boxes are ordered by
+    beam, so that the many neighbours on a box's own beam are skipped as a range
+    rather than listed and dropped."""
+    E = len(lo)
+    width = (1.0 + 1e-6) * float(np.max(hi - lo)) if E else 1.0
+    if not (width > 0.0 and np.isfinite(width)) or not np.all(np.isfinite(lo)):
+        return np.triu_indices(E, k=1)  # nothing to grid on: every pair
+    cell = np.floor((lo - lo.min(axis=0)) / width).astype(np.int64)
+    rows = int(cell[:, 1].max()) + 3  # a free row above and below: keys stay distinct
+    n_beams = int(beam.max()) + 1
+    key = cell[:, 0] * rows + cell[:, 1]
+    order = np.argsort(key * n_beams + beam, kind="stable")
+    keys = (key * n_beams + beam)[order]
+    firsts, seconds = [], []
+
+    def add(i, start, stop):
+        count = stop - start
+        total = int(count.sum())
+        if total:
+            within = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
+            i, j = np.repeat(i, count), order[np.repeat(start, count) + within]
+            firsts.append(i[j > i])
+            seconds.append(j[j > i])
+
+    boxes = np.arange(E)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            near = (key + dx * rows + dy) * n_beams
+            start, stop = (np.searchsorted(keys, near + b) for b in (0, n_beams))
+            own_start, own_stop = (np.searchsorted(keys, near + beam + b) for b in (0, 1))
+            add(boxes, start, own_start)  # the other beams, before this box's own
+            add(boxes, own_stop, stop)  # and after it
+            mine = own[beam]
+            add(boxes[mine], own_start[mine], own_stop[mine])
+    if not firsts:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    i, j = np.concatenate(firsts), np.concatenate(seconds)
+    sort = np.lexsort((j, i))
+    return i[sort], j[sort]
 
 
 # above this many elements the lower bound of the gap compares the boxes of whole beams
