@@ -7,6 +7,9 @@ import numpy as np
 
 from beamcontact.spline.basis import nurbs_basis_derivatives
 
+# the most parameters that NurbsCurve.evaluate takes in one piece
+EVALUATE_CHUNK = 65536
+
 
 @dataclass(frozen=True, eq=False)
 class NurbsCurve:
@@ -74,6 +77,12 @@ class NurbsCurve:
         basis matrix: its size, parameters x control points, made the arc-length table of
         an 800-element beam a 6 GB array (and 8 s)."""
         u = np.atleast_1d(np.asarray(u, float))
+        if len(u) > EVALUATE_CHUNK:
+            # in pieces: the basis and the gathered points of millions of parameters (the
+            # arc-length weights of 600 000 contact segments) are arrays of hundreds of MB;
+            # every point is the same sum either way
+            return np.concatenate([self.evaluate(u[i:i + EVALUATE_CHUNK], nders)
+                                   for i in range(0, len(u), EVALUATE_CHUNK)], axis=1)
         first, ders = nurbs_basis_derivatives(self.knots, self.degree, self.weights, u)
         local = self.points[first[:, None] + np.arange(self.degree + 1)]  # (len(u), p+1, 2)
         return np.einsum("udk,ukc->duc", ders[:, : nders + 1], local)
