@@ -395,7 +395,7 @@ def check(case: Annotated[Path, typer.Argument(help="Case file (TOML).")]) -> No
     from beamcontact.io.case import CaseError
     from beamcontact.runner import check_case
 
-    beamcontact.enable_x64()  # the overlap check of a large model searches with JAX
+    beamcontact.enable_x64()  # as run: float64 wherever the model meets JAX
     parsed, _ = _load(case)
     _check_static_restraints(parsed)
     try:
