@@ -5,6 +5,7 @@ import pytest
 
 from beamcontact.spline import arc, elevate_degree, insert_knot, line, refine_knots
 from beamcontact.spline.knots import interior_knots
+from beamcontact.spline.refine import _insert_homogeneous
 
 U = np.linspace(0.0, 1.0, 201)
 
@@ -82,3 +83,52 @@ def test_sparse_basis_is_the_dense_basis():
     B = c.sparse_basis(u)
     assert B.nnz == len(u) * (c.degree + 1)
     np.testing.assert_array_equal(B.toarray(), c.basis_matrix(u)[0])
+
+
+@pytest.mark.parametrize("degree", [2, 3, 4, 5])
+def test_refine_knots_is_boehm_knot_after_knot(degree):
+    """refine_knots (all knots at once, in gap buffers; spline/refine_native.py) gives the
+    weighted control points of A5.1 applied one knot after the other bit for bit:
+    simple, repeated and existing knots, rational weights."""
+    from beamcontact.spline import NurbsCurve, open_uniform_knots
+
+    rng = np.random.default_rng(degree)
+    knots = open_uniform_knots(degree, 4, degree - 1)
+    n = len(knots) - degree - 1
+    c = NurbsCurve(degree, knots, rng.normal(size=(n, 2)), rng.uniform(0.5, 2, n))
+    existing = interior_knots(knots, degree)[0]
+    new = np.concatenate([rng.random(60), np.repeat(rng.random(10), degree - 1),
+                          existing[:1]])
+    knots_1, pw_1 = c.knots, c.homogeneous()
+    values, counts = np.unique(new, return_counts=True)
+    for u, times in zip(values, counts, strict=True):
+        knots_1, pw_1 = _insert_homogeneous(degree, knots_1, pw_1, float(u), int(times))
+    one_by_one = NurbsCurve.from_homogeneous(degree, knots_1, pw_1)
+    at_once = refine_knots(c, new)
+    np.testing.assert_array_equal(at_once.knots, one_by_one.knots)
+    np.testing.assert_array_equal(at_once.points, one_by_one.points)
+    np.testing.assert_array_equal(at_once.weights, one_by_one.weights)
+    with pytest.raises(ValueError, match="multiplicity"):
+        refine_knots(c, np.repeat(existing[:1], degree))  # the existing one plus p
+
+
+@pytest.mark.parametrize("geometry", ["line", "arc"])
+def test_parameters_at_lengths_split_a_curve_into_equal_lengths(geometry):
+    """10 000 targets: the arc length at each parameter is its fraction of the length to
+    round-off (Newton to a few ulps, no target sent back to bisection by round-off),
+    and a beam axis refined into 10 000 elements has elements of one length."""
+    from beamcontact.beam.mesh import refine_axis
+
+    c = line([0.0, 0.0], [10.0, 3.0]) if geometry == "line" else arc([0, 0], 2.0, 0.1, 2.6)
+    fine = elevate_degree(c, 3 - c.degree)
+    fractions = np.arange(1, 10_000) / 10_000
+    u = fine.parameters_at_lengths(fractions)
+    assert np.all(np.diff(u) > 0.0)
+    length = fine.arc_length()
+    for k in range(0, len(u), 499):
+        assert abs(fine.arc_length(u[k]) / length - fractions[k]) < 1e-15
+    refined = refine_axis(c, 3, 10_000, 2)
+    breaks = np.unique(refined.knots)
+    assert len(breaks) == 10_001
+    segments = np.diff([refined.arc_length(b) for b in breaks[::97]])
+    np.testing.assert_allclose(segments, segments[0], rtol=1e-12)

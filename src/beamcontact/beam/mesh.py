@@ -25,7 +25,11 @@ def refine_axis(curve: NurbsCurve, degree: int, elements: int, continuity: int) 
     fine = elevate_degree(curve, degree - curve.degree)
     existing = element_breaks(fine.knots)
     new = fine.parameters_at_lengths(np.arange(1, elements) / elements)
-    new = [u for u in new if np.min(np.abs(existing - u)) > 1e-10]
+    # the nearest existing break of each new knot, on either side (existing is sorted)
+    right = np.clip(np.searchsorted(existing, new), 0, len(existing) - 1)
+    left = np.clip(right - 1, 0, len(existing) - 1)
+    nearest = np.minimum(np.abs(existing[left] - new), np.abs(existing[right] - new))
+    new = new[nearest > 1e-10]
     return refine_knots(fine, np.repeat(new, degree - continuity))
 
 

@@ -128,9 +128,12 @@ def contact_elements(disc, segments: int, betas, beam_pairs=None, self_contact: 
         R[:, :, : p + 1] = d[:, 0].reshape(n_el, segments, p + 1)
         uq = 0.5 * (u1 - u0) * x + 0.5 * (u0 + u1)  # (n_el, segments, Gauss points)
         speed = np.linalg.norm(curve.evaluate(uq.ravel(), 1)[1], axis=1).reshape(uq.shape)
-        # one dot product per segment, as the weights have always been summed
-        w = np.array([row @ gw for row in (0.5 * (u1 - u0) * speed).reshape(-1, len(gw))])
-        w = w.reshape(n_el, segments)
+        # Gauss-Legendre per segment, summed in the order of the points (a BLAS dot
+        # product per segment was a Python loop over millions of segments)
+        scaled = 0.5 * (u1 - u0) * speed
+        w = np.zeros((n_el, segments))
+        for q in range(len(gw)):
+            w += scaled[..., q] * gw[q]
         # arc length before each element, summed element by element; the middles
         before = np.concatenate([[0.0], np.cumsum(w.sum(axis=1))[:-1]])
         ss.append(before[:, None] + np.cumsum(w, axis=1) - 0.5 * w)

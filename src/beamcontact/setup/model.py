@@ -99,14 +99,16 @@ def discretize(case: Case) -> Discretization:
     """Refine every beam's axis and build its mesh (numbering follows the case order)."""
     infos, offset = [], 0
     for b in case.beams:
-        curve = refine_axis(axis_curve(b), b.degree, b.elements, b.smoothness)
+        axis = axis_curve(b)
+        curve = refine_axis(axis, b.degree, b.elements, b.smoothness)
         mesh = build_mesh(curve)
         section = make_section(b)
         _, K = _reference_metric(mesh)
         if np.max(np.abs(K)) * section.half_depth >= 1.0:
             raise ValueError(f"beam {b.name!r}: the section half-depth exceeds the radius of "
                              f"curvature of the axis")
-        infos.append(DiscreteBeam(b.name, mesh, section, offset, curve.arc_length()))
+        # the refined curve is the same curve: its length from the few spans of the axis
+        infos.append(DiscreteBeam(b.name, mesh, section, offset, axis.arc_length()))
         offset += curve.n_points
     return Discretization(tuple(infos), offset)
 

@@ -6,9 +6,7 @@ from functools import cached_property
 import numpy as np
 
 from beamcontact.spline.basis import nurbs_basis_derivatives
-
-# the most parameters that NurbsCurve.evaluate takes in one piece
-EVALUATE_CHUNK = 65536
+from beamcontact.spline.basis_native import curve_points_into
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,6 +26,10 @@ class NurbsCurve:
     weights: np.ndarray
 
     def __post_init__(self) -> None:
+        # float64 C-contiguous, as the compiled basis takes them (a frozen dataclass)
+        for name in ("knots", "points", "weights"):
+            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name),
+                                                                dtype=float))
         n = len(self.points)
         if len(self.knots) != n + self.degree + 1 or len(self.weights) != n:
             raise ValueError(f"inconsistent NURBS: {n} points, {len(self.weights)} weights, "
@@ -71,21 +73,15 @@ class NurbsCurve:
                              shape=(len(u), self.n_points))
 
     def evaluate(self, u: np.ndarray, nders: int = 0) -> np.ndarray:
-        """Points and parametric derivatives: shape (nders+1, len(u), 2).
+        """Points and parametric derivatives: shape (nders+1, len(u), 2), nders <= 2.
 
         Sums the p+1 basis functions that are nonzero at each parameter, never the dense
         basis matrix: its size, parameters x control points, made the arc-length table of
         an 800-element beam a 6 GB array (and 8 s)."""
-        u = np.atleast_1d(np.asarray(u, float))
-        if len(u) > EVALUATE_CHUNK:
-            # in pieces: the basis and the gathered points of millions of parameters (the
-            # arc-length weights of 600 000 contact segments) are arrays of hundreds of MB;
-            # every point is the same sum either way
-            return np.concatenate([self.evaluate(u[i:i + EVALUATE_CHUNK], nders)
-                                   for i in range(0, len(u), EVALUATE_CHUNK)], axis=1)
-        first, ders = nurbs_basis_derivatives(self.knots, self.degree, self.weights, u)
-        local = self.points[first[:, None] + np.arange(self.degree + 1)]  # (len(u), p+1, 2)
-        return np.einsum("udk,ukc->duc", ders[:, : nders + 1], local)
+        u = np.ascontiguousarray(np.atleast_1d(u), dtype=float)
+        out = np.empty((nders + 1, len(u), 2))
+        curve_points_into(self.knots, self.degree, self.weights, self.points, u, nders, out)
+        return out
 
     def arc_length(self, u: float = 1.0) -> float:
         """Arc length from parameter 0 to u."""
@@ -125,7 +121,9 @@ class NurbsCurve:
 
         All at once: each target is bracketed by a cell of the length table and found by
         Newton's method on the arc length (its derivative is the speed), safeguarded by
-        bisection of the bracket, to a few ulps of u."""
+        bisection of the bracket; a target stops once its Newton step is below a few ulps
+        of u (or of its cell), so that round-off in the arc length never sends a
+        converged target back to bisection."""
         f = np.atleast_1d(np.asarray(fractions, float))
         out = np.clip(f, 0.0, 1.0)
         grid, cumulative = self._length_table
@@ -138,17 +136,21 @@ class NurbsCurve:
         todo = np.flatnonzero((f > 0.0) & (f < 1.0) & ~on_grid)
         a, lo, hi, rest = lo[todo], lo[todo].copy(), hi[todo].copy(), rest[todo]
         u = lo + (hi - lo) * rest / span[todo]
+        tol = 4.0 * np.finfo(float).eps * np.maximum(np.abs(u), hi - lo)
+        active = np.arange(len(u))
         for _ in range(100):
-            g = self._length_between(a, u) - rest
-            lo, hi = np.where(g < 0.0, u, lo), np.where(g > 0.0, u, hi)
-            step = g / np.linalg.norm(self.evaluate(u, 1)[1], axis=1)
-            new = u - step
-            outside = ~((new > lo) & (new < hi))
-            new = np.where(outside, 0.5 * (lo + hi), new)
-            converged = (np.abs(new - u) <= 4 * np.finfo(float).eps * np.abs(u)) | (g == 0.0)
-            u = np.where(g == 0.0, u, new)
-            if np.all(converged):
+            if active.size == 0:
                 break
+            ua, la, ha = u[active], lo[active], hi[active]
+            g = self._length_between(a[active], ua) - rest[active]
+            step = g / np.linalg.norm(self.evaluate(ua, 1)[1], axis=1)
+            new = ua - step
+            done = (np.abs(step) <= tol[active]) | (g == 0.0)
+            la, ha = np.where(g < 0.0, ua, la), np.where(g > 0.0, ua, ha)
+            outside = ~((new > la) & (new < ha)) & ~done
+            u[active] = np.where(outside, 0.5 * (la + ha), np.where(g == 0.0, ua, new))
+            lo[active], hi[active] = la, ha
+            active = active[~done]
         out[todo] = u
         return out
 

@@ -6,6 +6,7 @@ B-spline (P&T Sec. 4.2).
 
 import numpy as np
 
+from beamcontact.spline import refine_native
 from beamcontact.spline.basis import basis_derivatives, find_span
 from beamcontact.spline.curve import NurbsCurve
 from beamcontact.spline.knots import interior_knots
@@ -46,12 +47,19 @@ def insert_knot(curve: NurbsCurve, u: float, times: int = 1) -> NurbsCurve:
 
 
 def refine_knots(curve: NurbsCurve, new_knots) -> NurbsCurve:
-    """Insert every value of ``new_knots`` (repeats mean multiplicity)."""
+    """Insert every value of ``new_knots`` (repeats mean multiplicity): A5.1 at each
+    value in ascending order, as :func:`insert_knot` one after the other, in time linear
+    in the number of control points (:mod:`beamcontact.spline.refine_native`)."""
     values, counts = np.unique(np.asarray(new_knots, float), return_counts=True)
-    knots, pw = curve.knots, curve.homogeneous()
-    for u, m in zip(values, counts, strict=True):
-        knots, pw = _insert_homogeneous(curve.degree, knots, pw, float(u), int(m))
-    return NurbsCurve.from_homogeneous(curve.degree, knots, pw)
+    pw = curve.homogeneous()
+    knots = np.empty(len(curve.knots) + counts.sum())
+    q = np.empty((len(pw) + counts.sum(), pw.shape[1]))
+    failed = refine_native.insert_sorted_into(curve.degree, curve.knots, pw, values,
+                                              counts.astype(np.int64), knots, q)
+    if failed >= 0:
+        raise ValueError(f"knot {values[failed]} would exceed multiplicity {curve.degree} "
+                         f"(inserting {counts[failed]})")
+    return NurbsCurve.from_homogeneous(curve.degree, knots, q)
 
 
 def elevate_degree_homogeneous(degree: int, knots: np.ndarray, pw: np.ndarray,
