@@ -232,16 +232,15 @@ def _gravity_energy(R, wq, g_ref, e, gravity, x_e):
 
 
 @njit
-def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out, tangent):
+def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out):
     """r_pot added to r_out and the potential's blocks into k_out[b] (the elements, then
-    the loads; without ``tangent`` the elements' are left alone, the loads' overwritten:
-    scratch); r_el (n_el, m) is scratch."""
+    the loads); r_el (n_el, m) is scratch."""
     n_el = nm.conn.shape[0]
     # k_out whole, not k_out[:n_el]: the kernel writes only rows e < n_el, and a slice
     # would be typed as a non-contiguous array and compile a slower element kernel
     energy_native.block_strain_residual_tangent(x, nm.conn, nm.dR, nm.ddR, nm.wq, nm.g_ref,
                                                 nm.K_ref, nm.eta, nm.w_eta, nm.E, r_el,
-                                                k_out, tangent)
+                                                k_out)
     R, wq, g_ref, gravity, dofs = nm.R, nm.wq, nm.g_ref, nm.gravity, nm.block_dofs
     for e in range(n_el):
         c = lam * nm.rho_area[e] * nm.gravity_on[e]
@@ -274,7 +273,7 @@ def potential_residual_blocks(nm, u, lam, theta_n, t_n, r_out, k_out):
     """
     r_out[:] = 0.0
     r_el = np.empty((nm.conn.shape[0], nm.block_dofs.shape[1]))
-    _potential(nm, _positions(nm.x_ref, u), lam, theta_n, t_n, r_el, r_out, k_out, True)
+    _potential(nm, _positions(nm.x_ref, u), lam, theta_n, t_n, r_el, r_out, k_out)
 
 
 @njit
@@ -302,9 +301,9 @@ def energies(nm, u, lam, theta_n, t_n):
 
 @njit_parallel
 def _inertia_elements(conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref, rho_area,
-                      rho_inertia, r_el, k_el, tangent):
-    """Every element's inertia residual into r_el[e] and (with ``tangent``) its block into
-    k_el[e], the elements on the cores (each whole on one thread)."""
+                      rho_inertia, r_el, k_el):
+    """Every element's inertia residual into r_el[e] and its block into k_el[e], the
+    elements on the cores (each whole on one thread)."""
     n_el, n = conn.shape
     for e in prange(n_el):
         w_e = np.empty((5, n, 2))
@@ -314,26 +313,25 @@ def _inertia_elements(conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref, 
         _gather(vn2, c, w_e[2])
         _gather(an2, c, w_e[3])
         _gather(x_ref, c, w_e[4])
-        inertia_native.element_inertia_into(
+        inertia_native.element_inertia_residual_tangent(
             w_e[0], w_e[1], w_e[2], w_e[3], w_e[4], coeffs, R[e], dR[e], wq[e], g_ref[e],
-            rho_area[e], rho_inertia[e], r_el[e], k_el[e], tangent)
+            rho_area[e], rho_inertia[e], r_el[e], k_el[e])
 
 
 @njit
-def _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, add, tangent):
-    """The inertia residual added to r_out and (with ``tangent``) its element blocks
-    written into k_out[:n_el], or added to them if ``add`` (in element order, whatever the
-    threads)."""
+def _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, add):
+    """The inertia residual added to r_out and its element blocks written into
+    k_out[:n_el], or added to them if ``add`` (in element order, whatever the threads)."""
     shape = nm.x_ref.shape
     n_el, n = nm.conn.shape
     r_el = np.empty((n_el, 2 * n))
-    k_el = np.empty((n_el, 2 * n, 2 * n)) if add and tangent else k_out
+    k_el = np.empty((n_el, 2 * n, 2 * n)) if add else k_out
     _inertia_elements(nm.conn, nm.x_ref, u.reshape(shape), u_n.reshape(shape),
                       v_n.reshape(shape), a_n.reshape(shape), coeffs, nm.R, nm.dR, nm.wq,
-                      nm.g_ref, nm.rho_area, nm.rho_inertia, r_el, k_el, tangent)
+                      nm.g_ref, nm.rho_area, nm.rho_inertia, r_el, k_el)
     for e in range(n_el):
         _scatter_add(nm.block_dofs[e], r_el[e], r_out)
-        if add and tangent:
+        if add:
             k_out[e] += k_el[e]
 
 
@@ -350,7 +348,7 @@ def inertia_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out):
             blocks, dofs nm.block_dofs[:n_el]; the inertia has no load blocks).
     """
     r_out[:] = 0.0
-    _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, False, True)
+    _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, False)
 
 
 @njit
@@ -362,25 +360,14 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
     into r_out (n_dof,) and k_out (n_blocks, m, m), with r_pot (the history f_pot of the
     next step once converged) into r_pot_out (n_dof,). Arguments as in
     :func:`inertia_residual_blocks` and :func:`potential_residual_blocks`."""
-    hht_residual_into(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r_out,
-                      r_pot_out, k_out, True)
-
-
-@njit
-def hht_residual_into(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r_out,
-                      r_pot_out, k_out, tangent):
-    """:func:`hht_residual_blocks`; without ``tangent`` the same residual bits and k_out
-    scratch (the Newton iterate that converges needs no tangent)."""
     c = 1.0 + alpha
     r_pot_out[:] = 0.0
     r_el = np.empty((nm.conn.shape[0], nm.block_dofs.shape[1]))
-    _potential(nm, _positions(nm.x_ref, u), 1.0, theta_n, t_n, r_el, r_pot_out, k_out,
-               tangent)
+    _potential(nm, _positions(nm.x_ref, u), 1.0, theta_n, t_n, r_el, r_pot_out, k_out)
     for i in range(r_out.shape[0]):
         r_out[i] = c * r_pot_out[i] - alpha * f_pot_n[i]
-    if tangent:
-        k_out *= c
-    _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, True, tangent)
+    k_out *= c
+    _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, True)
 
 
 @njit

@@ -116,22 +116,18 @@ def point_strain_derivatives(y, g_ref, K_ref, eta, w_eta, E, grad_out, hess_out)
 
 
 @njit
-def _element(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out, k_out, grad, hess,
-             tangent):
-    """:func:`element_strain_residual_tangent` with scratch grad (4,), hess (4, 4);
-    without ``tangent`` k_out is left alone."""
+def _element(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out, k_out, grad, hess):
+    """:func:`element_strain_residual_tangent` with scratch grad (4,), hess (4, 4)."""
     r_out[:] = 0.0
-    if tangent:
-        k_out[:, :] = 0.0
+    k_out[:, :] = 0.0
     energy = 0.0
     for q in range(wq.shape[0]):
         y0, y1, y2, y3 = _axis_at(x_e, dR, ddR, q)
         w = wq[q]
         energy += w * _point_derivatives(y0, y1, y2, y3, g_ref[q], K_ref[q], eta, w_eta, E,
                                          grad, hess)
-        _add_point(dR, ddR, q, w, grad, hess, r_out, k_out, tangent)
-    if tangent:
-        _mirror_blocks(k_out)
+        _add_point(dR, ddR, q, w, grad, hess, r_out, k_out)
+    _mirror_blocks(k_out)
     return energy
 
 
@@ -148,18 +144,15 @@ def _mirror_blocks(k_out):
 
 
 @njit
-def _add_point(dR, ddR, q, w, grad, hess, r_out, k_out, tangent):
-    """r += w D^T grad and (with ``tangent``) k += w D^T hess D for the basis rows
-    D = (dR_q, ddR_q) of Gauss point q: y = (dR_q x_e, ddR_q x_e), so dof (k, a) enters
-    y_a with dR_qk and y_(2+a) with ddR_qk. Only the 2 x 2 blocks (k, m >= k) of k are
-    formed."""
+def _add_point(dR, ddR, q, w, grad, hess, r_out, k_out):
+    """r += w D^T grad and k += w D^T hess D for the basis rows D = (dR_q, ddR_q) of Gauss
+    point q: y = (dR_q x_e, ddR_q x_e), so dof (k, a) enters y_a with dR_qk and y_(2+a)
+    with ddR_qk. Only the 2 x 2 blocks (k, m >= k) of k are formed."""
     n = dR.shape[1]
     for k in range(n):
         d, dd = dR[q, k], ddR[q, k]
         for a in range(2):
             r_out[2 * k + a] += w * (d * grad[a] + dd * grad[2 + a])
-            if not tangent:
-                continue
             # row of D^T hess for dof (k, a), then times D for every dof (m, b)
             h0 = w * (d * hess[a, 0] + dd * hess[2 + a, 0])
             h1 = w * (d * hess[a, 1] + dd * hess[2 + a, 1])
@@ -198,7 +191,7 @@ def element_strain_residual_tangent(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, 
         E: Young's modulus.
     """
     return _element(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out, k_out,
-                    np.empty(4), np.empty((4, 4)), True)
+                    np.empty(4), np.empty((4, 4)))
 
 
 @njit
@@ -217,12 +210,11 @@ def element_strain_energy(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E):
 
 @njit_parallel
 def block_strain_residual_tangent(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out,
-                                  k_out, tangent):
+                                  k_out):
     """:func:`element_strain_residual_tangent` of every element of an ElementBlock
     (fields as in assembly/model.py; x the control points of the whole model (n_cp, 2)),
-    into r_out (n_el, 2n) and k_out (n_el, 2n, 2n) (without ``tangent``: k_out left
-    alone, r_out the same bits); returns the total strain energy. The elements on the
-    cores, each whole on one thread: no sum depends on the threads."""
+    into r_out (n_el, 2n) and k_out (n_el, 2n, 2n); returns the total strain energy. The
+    elements on the cores, each whole on one thread: no sum depends on the threads."""
     n_el, n = conn.shape
     energies = np.empty(n_el)
     for e in prange(n_el):
@@ -232,7 +224,7 @@ def block_strain_residual_tangent(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta
             x_e[k, 1] = x[conn[e, k], 1]
         energies[e] = _element(x_e, dR[e], ddR[e], wq[e], g_ref[e], K_ref[e], eta[e],
                                w_eta[e], E[e], r_out[e], k_out[e], np.empty(4),
-                               np.empty((4, 4)), tangent)
+                               np.empty((4, 4)))
     energy = 0.0
     for e in range(n_el):  # in element order, whatever the threads
         energy += energies[e]

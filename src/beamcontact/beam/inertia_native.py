@@ -199,19 +199,9 @@ def element_inertia_residual_tangent(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, d
     the rotational term is M_x + dt gamma c_a M_v + c_a M_a (dv/du = dt gamma c_a,
     da/du = c_a).
     """
-    element_inertia_into(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, dR, wq, g_ref, rho_area,
-                         rho_inertia, r_out, k_out, True)
-
-
-@njit
-def element_inertia_into(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, dR, wq, g_ref, rho_area,
-                         rho_inertia, r_out, k_out, tangent):
-    """:func:`element_inertia_residual_tangent`; without ``tangent`` k_out is left alone
-    (r_out the same bits)."""
     c_a, dt, gamma = coeffs[0], coeffs[1], coeffs[3]
     r_out[:] = 0.0
-    if tangent:
-        k_out[:, :] = 0.0
+    k_out[:, :] = 0.0
     m = np.empty(2)
     jac = np.empty((3, 2, 2))
     J = np.empty((2, 2))
@@ -221,8 +211,7 @@ def element_inertia_into(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, dR, wq, g_ref
         ax = _point_newmark(R, q, u_e, un_e, vn_e, an_e, coeffs, 0)[1]
         ay = _point_newmark(R, q, u_e, un_e, vn_e, an_e, coeffs, 1)[1]
         _add_vector(R, q, rho_ds * ax, rho_ds * ay, r_out)
-        if tangent:
-            _add_mass(R, q, rho_ds * c_a, k_out)
+        _add_mass(R, q, rho_ds * c_a, k_out)
         v1x, a1x = _point_newmark(dR, q, u_e, un_e, vn_e, an_e, coeffs, 0)
         v1y, a1y = _point_newmark(dR, q, u_e, un_e, vn_e, an_e, coeffs, 1)
         g1x, g1y = _row_dot(dR, q, xref_e)
@@ -230,8 +219,6 @@ def element_inertia_into(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, dR, wq, g_ref
         rotational_point(g1x + d1x, g1y + d1y, v1x, v1y, a1x, a1y, m, jac)
         rho_ds = rho_inertia * ds
         _add_vector(dR, q, rho_ds * m[0], rho_ds * m[1], r_out)
-        if not tangent:
-            continue
         for a in range(2):
             for b in range(2):
                 J[a, b] = rho_ds * (jac[0, a, b] + dt * gamma * c_a * jac[1, a, b]

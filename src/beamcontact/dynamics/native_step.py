@@ -120,27 +120,23 @@ def _newmark(u, u_n, v_n, a_n, c_a, h, c_1, gamma, v_out, a_out):
 
 @njit
 def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n,
-                      tangent, position, positions, free_layout, band, B, C, D, kl, ku, r,
-                      r_pot, r_layout, k_blocks):
+                      position, positions, free_layout, band, B, C, D, kl, ku, r, r_pot,
+                      r_layout, k_blocks):
     """The HHT residual at u with supports applied (global numbering, into r), f_pot(u)
-    (contact included) into r_pot, and, with ``tangent``, the tangent assembled into the
-    bordered arrays with its residual in layout order (r_layout; without it the bordered
-    arrays are left alone and the residual is the same bits); returns (||r||, the contact
-    energy at u)."""
-    nmod.hht_residual_into(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r,
-                           r_pot, k_blocks, tangent)
-    if tangent:
-        bordered.zero(band, B, C, D)
-        bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
+    (contact included) into r_pot, and the tangent assembled into the bordered arrays
+    with its residual in layout order (r_layout); returns (||r||, the contact energy at
+    u)."""
+    nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r,
+                             r_pot, k_blocks)
+    bordered.zero(band, B, C, D)
+    bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
     e_contact = 0.0
     if contact[2].shape[0] > 0:
-        kl_contact = kl if tangent else -1  # -1: the forces alone
         e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha,
-                                   position, band, B, C, D, kl_contact, ku, r_pot, r)
-    if tangent:
-        return bordered.supported_residual(band, B, C, D, kl, ku, free_layout, position, r,
-                                           r_layout), e_contact
-    return bordered.supported_norm(free_layout, position, r, r_layout), e_contact
+                                   position, band, B, C, D, kl, ku, r_pot, r)
+    norm = bordered.supported_residual(band, B, C, D, kl, ku, free_layout, position, r,
+                                       r_layout)
+    return norm, e_contact
 
 
 @njit
@@ -178,27 +174,20 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     args = (position, positions, free_layout, band, B, C, D, kl, ku, r, f_pot, r_layout,
             k_blocks)
     norm0, e_contact = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
-                                         f_pot_n, theta_n, t_n, True, *args)
+                                         f_pot_n, theta_n, t_n, *args)
     done, failed = norm0 <= atol, not np.isfinite(norm0)
     k, rn = 0, norm0
     while not done and not failed and k < max_iterations:
         step, finite = bordered.newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position,
                                               r_layout, du, u)
-        # the last evaluation is at the solution: its contact energy is the step's. From
-        # the second update on, most iterates converge (2 updates in 85 % of the bundled
-        # benchmark's steps), so the residual comes first and the tangent only if another
-        # update follows: the same iterates, the same bits
-        lazy = k >= 1
+        # the last evaluation is at the solution: its contact energy is the step's
         rn, e_contact = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
-                                          f_pot_n, theta_n, t_n, not lazy, *args)
+                                          f_pot_n, theta_n, t_n, *args)
         converged = rn <= rtol * norm0 + atol or step <= utol_h
         diverged = diverge_after > 0 and k + 1 >= diverge_after and rn > norm0
         failed = not np.isfinite(rn) or not finite or diverged
         done = converged and not failed
         k += 1
-        if lazy and not done and not failed and k < max_iterations:
-            _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n,
-                              theta_n, t_n, True, *args)
     _newmark(u, u_n, v_n, a_n, coeffs[0], h, coeffs[2], gamma, v, a)
     nmod.update_load_state(nm, u, theta_n, t_n, theta, tangent)
     e_strain, e_gravity, e_ext = nmod.energies(nm, u, 1.0, theta, tangent)

@@ -574,16 +574,3 @@ def supported_residual(band, B, C, D, kl, ku, free_layout, position, r, r_layout
         r[i] = r_layout[position[i]]
         norm += r[i] * r[i]
     return np.sqrt(norm)
-
-
-@njit
-def supported_norm(free_layout, position, r, r_layout):
-    """:func:`supported_residual` without a matrix: the supported entries of r zeroed
-    (r and r_layout as there, the same bits); returns ||r||."""
-    norm = 0.0
-    for i in range(r.shape[0]):
-        j = position[i]
-        r_layout[j] = r[i] * free_layout[j]
-        r[i] = r_layout[j]
-        norm += r[i] * r[i]
-    return np.sqrt(norm)
