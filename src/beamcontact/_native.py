@@ -120,10 +120,75 @@ def njit_parallel(func):
         numba.config.CACHE_DIR = saved
 
 
+# the most threads the parallel kernels of this process may use (NUMBA_NUM_THREADS, or 1
+# after single_thread)
+_most_threads = numba.config.NUMBA_NUM_THREADS
+
+
 def single_thread() -> None:
     """Run the parallel kernels of this process on one thread (a sweep's worker: the
     cores are shared out between workers already)."""
+    global _most_threads
+    _most_threads = 1
     numba.set_num_threads(1)
+
+
+def _cpu_sample() -> tuple[float, float, float] | None:
+    """(wall clock, CPU seconds spent by all processes on the cores this process may use,
+    CPU seconds of this process), or None where /proc/stat cannot be read."""
+    try:
+        allowed = {f"cpu{c}" for c in os.sched_getaffinity(0)}
+        with open("/proc/stat") as f:
+            lines = [line.split() for line in f if line.startswith("cpu")]
+    except (OSError, AttributeError):
+        return None
+    tick = os.sysconf("SC_CLK_TCK")
+    busy = 0
+    for fields in lines:
+        if fields[0] in allowed:
+            # user nice system idle iowait irq softirq steal (guest time is in user)
+            values = [int(v) for v in fields[1:9]]
+            busy += sum(values) - values[3] - values[4]
+    return time.monotonic(), busy / tick, time.process_time()
+
+
+class CoreShare:
+    """The threads of the parallel kernels follow the cores that other processes leave
+    free, re-read whenever :meth:`update` is called at least ``window`` seconds after the
+    last reading (the native time loop calls it each time it returns to Python).
+
+    Numba's OpenMP threads spin at the end of each parallel loop, waiting for the others.
+    When another process keeps a core busy, a thread of ours waits for a time slice on
+    the core left, and each of the thousands of parallel loops of a run costs a slice:
+    the bundled drop to 0.9 s took 23-54 s on two threads beside one busy process, 2.5 s
+    on one thread (0.8 s on an idle machine; benchmarks/README.md, session 15). So the
+    count is the cores this process may use, less those other processes kept busy since
+    the last reading (rounded), at least 1 and at most the count the process started
+    with (``NUMBA_NUM_THREADS``, or 1 in a sweep's worker). The results do not depend on
+    the count (:func:`njit_parallel`). Without /proc/stat the count stays."""
+
+    def __init__(self, window: float = 0.25, sample=_cpu_sample):
+        self.most = _most_threads
+        self.cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") \
+            else (os.cpu_count() or 1)
+        self.window, self._sample = window, sample
+        self._last = sample() if self.most > 1 else None
+        self.threads = self.most
+
+    def update(self) -> int:
+        """Set and return the thread count for the next parallel loops."""
+        if self._last is None:
+            numba.set_num_threads(self.threads)
+            return self.threads
+        now = self._sample()
+        if now is None or now[0] - self._last[0] < self.window:
+            return self.threads
+        wall = now[0] - self._last[0]
+        others = max(0.0, (now[1] - self._last[1]) - (now[2] - self._last[2])) / wall
+        self._last = now
+        self.threads = max(1, min(self.most, int(self.cores - others + 0.5)))
+        numba.set_num_threads(self.threads)
+        return self.threads
 
 
 prange = numba.prange

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from beamcontact._native import njit
+from beamcontact._native import CoreShare, njit
 from beamcontact.assembly import native_model as nmod
 from beamcontact.assembly.model import LoadState
 from beamcontact.contact import blocks_native
@@ -555,6 +555,7 @@ class NativeEngine:
         last_values, last_counts = np.zeros(len(VALUES)), np.zeros(len(COUNTS), np.int64)
         made = np.zeros(2, np.int64)
         budget, first_s = 1, None
+        cores = CoreShare()
         n = u.shape[0]
         # at most about 32 MB of buffers per call
         row = 8 * (4 * n + theta.size + tangent.size + len(VALUES) + len(COUNTS) + ctl.size)
@@ -565,6 +566,7 @@ class NativeEngine:
                    np.empty((budget, *tangent.shape)), np.empty((budget, len(VALUES))),
                    np.empty((budget, len(COUNTS)), np.int64), np.empty((budget, ctl.size)))
             made[:] = 0
+            cores.update()
             t0 = time.perf_counter()
             try:
                 why = native_loop.run(self.nm, ne, law, self._contact is not None, system,
