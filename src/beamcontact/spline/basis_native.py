@@ -82,7 +82,7 @@ def ders_basis_into(knots, p, spans, u, nders, out):
 
 
 @njit
-def _rational_at(knots, p, weights, u, ndu, left, right, a, N, out, second=True):
+def _rational_at(knots, p, weights, u, ndu, left, right, a, N, out, second):
     """The rational basis R, dR/du, d2R/du2 at u into out (3, p+1) (zero second
     derivatives for p = 1; not computed, out[2] left alone, without ``second``); returns
     the index of the first non-zero function. N (3, p+1) is scratch."""
@@ -119,7 +119,8 @@ def nurbs_basis_into(knots, p, weights, u, first, out):
     left, right, a = np.zeros(p + 1), np.zeros(p + 1), np.zeros((2, p + 1))
     N = np.zeros((3, p + 1))
     for i in range(u.shape[0]):
-        first[i] = _rational_at(knots, p, weights, u[i], ndu, left, right, a, N, out[i])
+        first[i] = _rational_at(knots, p, weights, u[i], ndu, left, right, a, N, out[i],
+                                True)
 
 
 @njit_parallel

@@ -50,7 +50,7 @@ def insert_sorted_into(degree, knots, pw, values, counts, knots_out, pw_out):
     r = np.empty((p + 1, pw.shape[1]))
     for j in range(values.shape[0]):
         u, times = values[j], counts[j]
-        nk = mk + (total_k - shift_k - mk)  # current logical lengths
+        nk = total_k - shift_k  # the current number of knots
         # A2.1 on the current knots
         n = nk - p - 2
         if u >= _get(knots_out, mk, shift_k, n + 1):
