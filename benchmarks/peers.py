@@ -13,7 +13,13 @@ Runs, each in its own process, one after the other on this machine:
 * ``bundled``: ``beamcontact run`` of the bundled benchmark (3 s, every output), with the
   compilation cache warm and, once, cold (a fresh cache folder);
 * ``scaling``: the cost per step of one pinned beam vibrating without contact with 100
-  and with 800 quartic elements (500 fixed steps: ``error_tol = 0``).
+  and with 800 quartic elements (500 fixed steps: ``error_tol = 0``);
+* ``solid`` (not by default): the paper's Fig. 7 complete, the bundled benchmark with both
+  beam models, the continuum model in Kratos (peers/drop_solid.py) and PyElastica and
+  Exudyn on the same problem, overlaid (peers/fig7.py), every output in ``--solid-out``;
+  about 10 minutes;
+* ``solid-studies`` (not by default): the continuum model's studies (penalty, numerical
+  damping, step, mesh), about 3 hours on one core.
 
 Wall times: every code's *whole process* (start of Python to exit: for beamcontact the
 case check, the compiled kernels from the warm cache, the step loop and every output
@@ -29,6 +35,8 @@ deflection A_uy from it.
     pip install ".[peers]"                      # PyElastica and Exudyn
     python benchmarks/peers.py [--cases drop stiff bundled scaling] [--repeat 3]
                                [--engines native jax]
+    python benchmarks/peers.py --cases solid solid-studies [--solid-out DIR]
+                               [--kratos-python PYTHON]
 
 A full run takes 15-25 minutes here (the bundled benchmark alone about 6 minutes per run
 today). Numbers and machine: benchmarks/README.md.
@@ -44,6 +52,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -209,13 +218,130 @@ def case_scaling(tmp: Path, args):
               f"{r['time'] / rows[0]['time']:.1f} |")
 
 
+def _kratos(args, out: Path, *options: str) -> float:
+    """drop_solid.py (Kratos, one thread) into out (its CSV; out.json beside it); the wall
+    seconds of the whole process."""
+    wall, _ = _run([args.kratos_python, str(PEERS / "drop_solid.py"), "--out", str(out),
+                    *options], {"OMP_NUM_THREADS": "1"})
+    return wall
+
+
+def case_solid(tmp: Path, args):
+    """The paper's Fig. 7 complete (issue 24): the bundled benchmark with both beam models
+    (the bundled 60 segments per element and the paper's 20 for CG; IPIP with the paper's
+    "zones" and with "points"), the continuum model (drop_solid.py, its reference settings) and the
+    independent beam codes on the same problem (PEER_PROBLEM=bundled); the overlay and the
+    table of benchmarks/peers/fig7.py; every output kept in --solid-out."""
+    del tmp
+    out = args.solid_out
+    out.mkdir(parents=True, exist_ok=True)
+    import tomli_w
+
+    free_fall = REPO / "examples" / "free_fall"
+    # IPIP once more with the conservative pairing: the paper's "zones" add energy when
+    # the contact set changes, "points" do not
+    points = tomllib.loads((free_fall / "case_ipip.toml").read_text())
+    points["contact"]["pairing"] = "points"
+    (out / "case_ipip_points.toml").write_text(tomli_w.dumps(points))
+    curves, walls = [], []
+    for label, name, case in (("CG, 60 segments (bundled)", "cg", free_fall / "case_cg.toml"),
+                              ("CG, 20 segments (paper)", "cg_paper",
+                               free_fall / "case_cg_paper.toml"),
+                              ("IPIP zones (paper)", "ipip", free_fall / "case_ipip.toml"),
+                              ("IPIP points", "ipip_points", out / "case_ipip_points.toml")):
+        r = beamcontact_run(case, out / name, label)
+        curves.append(f"{label}={out / name}")
+        walls.append((label, r["process"]))
+    walls.append(("solid, Kratos (one thread)", _kratos(args, out / "solid.csv")))
+    curves.append(f"solid (Kratos)={out / 'solid.csv'}")
+    bundled = {"PEER_PROBLEM": "bundled"}
+    for label, script in (("PyElastica", "drop_pyelastica.py"), ("Exudyn", "drop_exudyn.py")):
+        csv = out / f"{script.removeprefix('drop_').removesuffix('.py')}.csv"
+        wall, _ = _run([sys.executable, str(PEERS / script), "--t-end", "3", "--out",
+                        str(csv)], bundled)
+        curves.append(f"{label}={csv}")
+        walls.append((label, wall))
+    import fig7
+
+    fig7.main([arg for c in curves for arg in ("--curve", c)]
+              + ["--out", str(out / "fig7.png")])
+    print("\n| run | whole process [s] |\n|---|---|")
+    for label, wall in walls:
+        print(f"| {label} | {wall:.1f} |")
+
+
+# The continuum model's studies (issue 24, item 2): the paper's Abaqus studies of Figs. 11
+# and 12 on this model, and its mesh convergence; (name, drop_solid.py options)
+BOSSAK = ("--time-scheme", "bossak", "--alpha-m", "-0.1")
+MESH2 = ("--nx-lower", "200", "--nx-upper", "60", "--ny", "8")
+MESH3 = ("--nx-lower", "300", "--nx-upper", "90", "--ny", "12")
+SOLID_STUDIES = (
+    ("reference", ()),
+    ("penalty_3e7", ("--penalty", "3e7")),
+    ("penalty_3e8", ("--penalty", "3e8")),
+    ("penalty_1e9", ("--penalty", "1e9")),
+    ("bossak_0.3", ("--time-scheme", "bossak", "--alpha-m", "-0.3")),
+    ("dt_2.5e-4", ("--dt", "2.5e-4")),
+    # the mesh study, with a little Bossak damping (undamped Newmark went unstable on the
+    # finer meshes: the energy grew without bound in free flight after the first impact).
+    # Kratos' mortar penalty is softer on a finer mesh (the same 1e8 let the bodies overlap
+    # by 0.9 cm at the first impact on the reference mesh, 1.8 cm on the one twice as
+    # fine), so each finer mesh runs with several penalties
+    ("bossak_0.1_mesh1_1e8", BOSSAK),
+    ("bossak_0.1_mesh1_3e8", BOSSAK + ("--penalty", "3e8")),
+    ("bossak_0.1_mesh2_1e8", BOSSAK + MESH2),
+    ("bossak_0.1_mesh2_2e8", BOSSAK + MESH2 + ("--penalty", "2e8")),
+    ("bossak_0.1_mesh2_4e8", BOSSAK + MESH2 + ("--penalty", "4e8")),
+    ("bossak_0.1_mesh3_3e8", BOSSAK + MESH3 + ("--penalty", "3e8", "--t-end", "1.8")),
+    ("bossak_0.1_mesh3_5.2e8", BOSSAK + MESH3 + ("--penalty", "5.2e8", "--t-end", "1.8")),
+)
+
+
+def case_solid_studies(tmp: Path, args):
+    """The continuum model's studies (SOLID_STUDIES), one Kratos run after the other (about
+    3 hours on one core); a run whose JSON exists in --solid-out/studies is kept; the table
+    of benchmarks/peers/README.md. A first amplitude that comes after the run's
+    ``valid_until`` (its own overlap check) is marked: it is not a result."""
+    del tmp
+    out = args.solid_out / "studies"
+    out.mkdir(parents=True, exist_ok=True)
+    print("| run | overlap at the first impact [cm] | first dip of A [m] | at [s] | "
+          "second collision [s] | first amplitude of A [m] | at [s] | valid until [s] | "
+          "E_total min-max, at the end [J] | steps not converged | wall [s] |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, options in SOLID_STUDIES:
+        csv = out / f"{name}.csv"
+        if not Path(str(csv) + ".json").is_file():
+            _kratos(args, csv, *options)
+        s = json.loads(Path(str(csv) + ".json").read_text())
+        rows = [ln for ln in csv.read_text().splitlines() if not ln.startswith("#")]
+        h = np.genfromtxt(rows, delimiter=",", names=True)
+        first = h["t"] < 0.8  # the first impact is at 0.750 s
+        overlap = -100 * min(0.0, float(h["min_gap"][first].min()))
+        dip = (h["t"] > 1.0) & (h["t"] < 1.2)  # before the second collision
+        k = int(np.argmin(h["A_uy"][dip]))
+        amp, when = s["first_amplitude_A"], s["first_amplitude_t"]
+        amp_text = "-" if amp is None else f"{amp:.3f}" + (
+            " (after valid until)" if when > s["valid_until"] else "")
+        second = s["second_collision_t"]
+        print(f"| {name} | {overlap:.2f} | {h['A_uy'][dip][k]:.3f} | {h['t'][dip][k]:.3f} | "
+              f"{'-' if second is None else f'{second:.3f}'} | {amp_text} | "
+              f"{'-' if when is None else f'{when:.3f}'} | {s['valid_until']:.3f} | "
+              f"{s['E_total_min']:.0f}-{s['E_total_max']:.0f}, {s['E_total_end']:.0f} | "
+              f"{s['nonconverged_steps']} | {s['wall_time_s']:.0f} |", flush=True)
+
+
 CASES = {"drop": case_drop, "stiff": lambda tmp, a: case_drop(tmp, a, 1.0e9, 1.0, True),
-         "bundled": case_bundled, "scaling": case_scaling}
+         "bundled": case_bundled, "scaling": case_scaling, "solid": case_solid,
+         "solid-studies": case_solid_studies}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", nargs="+", choices=list(CASES), default=list(CASES))
+    ap.add_argument("--cases", nargs="+", choices=list(CASES),
+                    default=["drop", "stiff", "bundled", "scaling"],
+                    help="what to run (default: the timing cases; solid and solid-studies "
+                    "are issue 24's continuum model)")
     ap.add_argument("--engines", nargs="+", default=["auto"],
                     choices=["auto", "native", "jax"],
                     help="beamcontact engines (solver.engine) of the drop cases")
@@ -225,6 +351,11 @@ def main() -> None:
                     help="the first step tried for PyElastica's largest stable step at its "
                     "default mesh; 0.8 times shorter until it is stable [s]")
     ap.add_argument("--repeat", type=int, default=1, help="run every case this many times")
+    ap.add_argument("--solid-out", type=Path, default=Path("results_solid"),
+                    help="where the cases solid and solid-studies keep every output")
+    ap.add_argument("--kratos-python", default=sys.executable,
+                    help="the Python with KratosMultiphysics (the [peers] extra) for "
+                    "drop_solid.py")
     args = ap.parse_args()
     print(f"machine: {os.cpu_count()} cores; python {sys.version.split()[0]}; "
           f"{time.strftime('%Y-%m-%d %H:%M')}")

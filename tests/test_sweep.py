@@ -96,6 +96,11 @@ def test_entries_by_index_and_same_suffix_keys_get_longer_labels():
 def test_format_value():
     assert [format_value(v) for v in (1e6, 1.22e6, 5e-25, 0.3, -0.33, 2, True, [0, -9.81])] \
         == ["1e6", "1.22e6", "5e-25", "0.3", "-0.33", "2", "true", "[0,-9.81]"]
+    # values one unit in the last place apart keep every digit, and read back exactly
+    for v in (1000.0, np.nextafter(1000.0, 2000.0), np.nextafter(1000.0, 0.0), 0.1 + 0.2,
+              np.nextafter(1e-5, 1.0)):
+        assert float(format_value(float(v))) == v
+    assert format_value(float(np.nextafter(1000.0, 2000.0))) == "1000.0000000000001"
 
 
 @pytest.mark.parametrize("sets, fragment", [
@@ -151,9 +156,15 @@ def test_local_cluster_two_runs_table_plots_and_resume(tmp_path):
         assert abs(float(row["first_impact_time"]) - np.sqrt(2 * 0.299 / g)) <= 1e-3 + 1e-12
         assert float(row["min_gap"]) < 0
         assert float(row["wall_time_s"]) > 0
+        # the energy account of each run closes (docs/theory.md, item "Energy account")
+        e0 = float(row["E_total_initial"])
+        assert e0 > 0
+        assert abs(float(row["balance_residual"])) <= 1e-9 * e0
+        assert abs(float(row["E_total_final"]) + float(row["E_dissipated"])
+                   - float(row["E_set_change"]) - e0) <= 1e-9 * e0
     # a softer penalty lets the beams penetrate deeper
     assert float(rows[0]["max_penetration"]) > float(rows[1]["max_penetration"])
-    for name in ("A_uy.png", "A_ux.png", "min_gap.png"):
+    for name in ("A_uy.png", "A_ux.png", "min_gap.png", "E_total.png"):
         assert (out / "plots" / name).stat().st_size > 0
     for row in rows:
         assert (out / row["run"] / "history.csv").is_file()

@@ -21,15 +21,24 @@ import numpy as np
 G = 9.81  # gravity on the falling beam [m/s^2]
 R = 0.1  # radius of both beams [m]
 RHO = 1000.0  # density [kg/m^3]
-# Young's modulus [Pa]; PEER_E overrides it for the stiff case of benchmarks/peers.py
-# (an environment variable, because every script reads E when it is imported)
-E = float(os.environ.get("PEER_E", "1.0e7"))
+# The problem: "drop" (the peer drop: a 4 m beam from x = 3 to 7, E = 1e7 Pa, surface gap
+# 2.76 m) or, with PEER_PROBLEM=bundled, the bundled benchmark examples/free_fall/case_cg.toml
+# (a 3 m beam from x = 3.5 to 6.5, E = 0.98e6 Pa, surface gap 2.759 m: Fig. 7 of the paper).
+# Environment variables, because every script reads them when it is imported.
+PROBLEM = os.environ.get("PEER_PROBLEM", "drop")
+if PROBLEM not in ("drop", "bundled"):
+    raise SystemExit(f"PEER_PROBLEM={PROBLEM!r}: 'drop' or 'bundled'")
+_BUNDLED = PROBLEM == "bundled"
+# Young's modulus [Pa]; PEER_E overrides it (the stiff case of benchmarks/peers.py)
+E = float(os.environ.get("PEER_E", "0.98e6" if _BUNDLED else "1.0e7"))
 AREA = np.pi * R**2
 INERTIA = np.pi * R**4 / 4
 MU = RHO * AREA  # mass per length [kg/m]
 L_LOWER = 10.0  # length of the pinned lower beam (and of the vibration tests) [m]
-GAP = 2.76  # initial surface gap of the drop [m]
+GAP = 2.759 if _BUNDLED else 2.76  # initial surface gap of the drop [m]
 Y_FALL = GAP + 2 * R  # axis of the falling beam [m]
+X_FALL = (3.5, 6.5) if _BUNDLED else (3.0, 7.0)  # ends of the falling beam [m]
+L_FALL = X_FALL[1] - X_FALL[0]  # its length [m]
 
 
 def parser(doc: str, out: str, *, dt: float, dx: float | None = None, V: bool = False,

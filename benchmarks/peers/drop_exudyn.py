@@ -81,7 +81,7 @@ import time
 import _common as common
 import exudyn as exu
 import numpy as np
-from _common import AREA, INERTIA, MU, Y_FALL, E, G, R
+from _common import AREA, INERTIA, L_FALL, MU, X_FALL, Y_FALL, E, G, R
 from exudyn.beams import GenerateBeamElementsAlongLine
 from exudyn.itemInterface import (
     MarkerBodyPosition,
@@ -111,7 +111,7 @@ def build(n_lower: int, n_fall: int, circles_per_element: int, k: float):
     mbs = SC.AddSystem()
     lower = add_lower_beam(mbs, n_lower)
     fall = GenerateBeamElementsAlongLine(
-        mbs, [3.0, Y_FALL, 0.0], [7.0, Y_FALL, 0.0], n_fall, cable_template(),
+        mbs, [X_FALL[0], Y_FALL, 0.0], [X_FALL[1], Y_FALL, 0.0], n_fall, cable_template(),
         gravity=[0.0, -G, 0.0],
     )
 
@@ -124,7 +124,7 @@ def build(n_lower: int, n_fall: int, circles_per_element: int, k: float):
     gc.SetSearchTreeCellSize(numberOfCells=[40, 8, 1])
     gc.SetSearchTreeBox(pMin=np.array([-1.0, -4.0, -1.0]), pMax=np.array([11.0, 4.0, 1.0]))
 
-    le_fall = 4.0 / n_fall
+    le_fall = L_FALL / n_fall
     s = le_fall / circles_per_element
     n_circles = 0
     for i, el in enumerate(fall["elements"]):
@@ -281,8 +281,8 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
 
     n_lower = common.even_elements(10.0, a.dx)
-    n_fall = int(round(4.0 / a.dx))
-    cpe = max(1, int(round(4.0 / n_fall / a.circle_spacing)))
+    n_fall = int(round(L_FALL / a.dx))
+    cpe = max(1, int(round(L_FALL / n_fall / a.circle_spacing)))
     SC, mbs, lower, fall, n_circles, s = build(n_lower, n_fall, cpe, a.k)
     nsteps, every = common.sampling(a.t_end, a.dt, a.max_rows)
 
@@ -301,7 +301,7 @@ def main(argv=None) -> None:
 
     e_tot = np.full(len(t), np.nan)
     yc = np.full(len(t), np.nan)
-    le_l, le_f = 10.0 / n_lower, 4.0 / n_fall
+    le_l, le_f = 10.0 / n_lower, L_FALL / n_fall
     for j in range(len(t)):
         ql = ref_l + q_all[j, il].reshape(-1, 4)
         qf = ref_f + q_all[j, iff].reshape(-1, 4)

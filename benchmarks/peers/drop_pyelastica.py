@@ -74,7 +74,7 @@ from __future__ import annotations
 import _common as common
 import elastica as ea
 import numpy as np
-from _common import RHO, Y_FALL, E, G, R
+from _common import L_FALL, RHO, X_FALL, Y_FALL, E, G, R
 from numba import njit
 
 
@@ -144,7 +144,11 @@ class LinePenaltyContact(ea.NoContact):
         self.w_two = 0.5 * np.asarray(w_two, dtype=np.float64)
 
     def energy_and_forces(self, one, two, apply: bool) -> float:
-        rsum = float(one.radius[0] + two.radius[0])
+        # the reference radii, not rod.radius: PyElastica shrinks an element's radius as it
+        # stretches (constant volume), which made this energy depend on the stretch of
+        # the end elements and the contact non-conservative (+4 % of E_total at the
+        # first impact of the bundled problem)
+        rsum = 2.0 * R
         x1 = one.position_collection
         x2 = two.position_collection
         f1 = one.external_forces
@@ -157,7 +161,7 @@ class LinePenaltyContact(ea.NoContact):
         # cheap pre-check: skip while rod one lies entirely above rod two (plus R1 + R2)
         y1 = system_one.position_collection[1]
         y2 = system_two.position_collection[1]
-        if y1.min() - y2.max() > system_one.radius[0] + system_two.radius[0]:
+        if y1.min() - y2.max() > 2.0 * R:
             return
         self.energy_and_forces(system_one, system_two, True)
 
@@ -175,8 +179,8 @@ def build(n_lower: int, n_fall: int, contact: str, k_line: float, k_builtin: flo
         10.0, R, RHO, youngs_modulus=E, shear_modulus=shear_factor * E / 3.0,
     )
     fall = ea.CosseratRod.straight_rod(
-        n_fall, np.array([3.0, Y_FALL, 0.0]), np.array([1.0, 0.0, 0.0]), normal,
-        4.0, R, RHO, youngs_modulus=E, shear_modulus=shear_factor * E / 3.0,
+        n_fall, np.array([X_FALL[0], Y_FALL, 0.0]), np.array([1.0, 0.0, 0.0]), normal,
+        L_FALL, R, RHO, youngs_modulus=E, shear_modulus=shear_factor * E / 3.0,
     )
     for rod in (lower, fall):  # optional study: scale the rotary inertia
         rod.mass_second_moment_of_inertia *= rotary_factor
@@ -192,7 +196,7 @@ def build(n_lower: int, n_fall: int, contact: str, k_line: float, k_builtin: flo
     )
     sim.add_forcing_to(fall).using(ea.GravityForces, acc_gravity=np.array([0.0, -G, 0.0]))
     if contact == "penalty":
-        w_fall, w_lower = _weights(n_fall + 1, 4.0), _weights(n_lower + 1, 10.0)
+        w_fall, w_lower = _weights(n_fall + 1, L_FALL), _weights(n_lower + 1, 10.0)
         sim.detect_contact_between(fall, lower).using(LinePenaltyContact, k_line, w_fall, w_lower)
         cont = LinePenaltyContact(k_line, w_fall, w_lower)  # twin, used for the energy only
     else:
@@ -233,7 +237,7 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
 
     n_lower = common.even_elements(10.0, a.dx)
-    n_fall = int(round(4.0 / a.dx))
+    n_fall = int(round(L_FALL / a.dx))
     sim, lower, fall, cont = build(n_lower, n_fall, a.contact, a.k_line, a.k_builtin,
                                    a.shear_factor, a.rotary_factor)
     mid = n_lower // 2

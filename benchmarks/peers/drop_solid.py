@@ -20,8 +20,9 @@ Geometry and section
     lower body's top (the beam model's surface gap: axes 2.959 apart minus 2 R), so free
     fall closes the gap at t = sqrt(2 * 2.759 / 9.81) = 0.750 s.
   * Bevelled bottom corners of the upper body (--chamfer, default 0.5): the two bottom corner
-    nodes are raised by chamfer * H (= 0.0866, over the first element length 0.1, i.e. a
-    41 degree bevel), the other end-face nodes linearly; with --chamfer-keep-mass 1 (default)
+    nodes are raised by chamfer * H (= 0.0866, over CHAMFER_LENGTH = 0.1 along the bottom,
+    the reference mesh's first element, on every mesh: a 41 degree bevel), the nodes above
+    and beside them linearly; with --chamfer-keep-mass 1 (default)
     the upper body's density is raised (to 1016.9 for 0.5) so that its mass is still
     rho A L = 94.248.  Reason: with square ends (--chamfer 0) the upper body's end corners dig
     into the lower body's top at about 1.5 s (relative angle 45-55 degrees between the two
@@ -84,7 +85,10 @@ Output and checks (computed by this script from the nodal values, not by Kratos)
   * valid_until: the first time at which the penetration exceeds --pen-limit * H (default
     10 %) or a bottom node of the upper body lies below the lower body's bottom edge
     (pass-through), or the last completed step if Kratos aborts (e.g. an inverted element);
-    the end time if none of these happens.  The same value is in the CSV header.
+    the end time if none of these happens.  The same value ends the CSV as a comment line.
+  * Both CSVs are written as the run goes (a row per step, flushed at every progress line),
+    so that a run that is stopped keeps what it computed; Ctrl-C (SIGINT) ends the time
+    loop and still writes the JSON, with "interrupted" true.
   * first impact: first step with min_gap <= --contact-tol (1 mm); also the zero of the gap
     extrapolated from the two last free steps.  Contact episodes: intervals with
     min_gap <= --contact-tol, merged when less than 0.05 s apart; the second collision is the
@@ -96,6 +100,13 @@ Known limits (Kratos 10.4.4, this set-up)
     active-set chatter; ALM + Bossak (alpha_m -0.3) loses about 110 J at the first impact.
   * The energy balance is only approximate with the penalty formulation: the penalty energy
     is not in E_total, and the long contact episodes (1.5-1.75 s) add or remove about 100 J.
+  * The mortar penalty's stiffness depends on the mesh: on a mesh twice as fine the same
+    --penalty let the bodies overlap twice as deep at the first impact (1e8, Bossak -0.1:
+    0.90 cm with 100 x 4 / 30 x 4 elements, 1.77 cm with 200 x 8 / 60 x 8). A mesh study
+    scales the penalty with the elements per length (benchmarks/peers.py, SOLID_STUDIES).
+  * Undamped Newmark went unstable in free flight after the first impact on the 200 x 8 /
+    60 x 8 mesh (the energy grew without bound from about 1.0 s); a little Bossak damping
+    (--time-scheme bossak --alpha-m -0.1) keeps it stable.
 """
 import argparse
 import contextlib
@@ -120,6 +131,9 @@ L_LOW = 10.0
 X_UP0, X_UP1 = 3.5, 6.5
 GAP0 = 2.759
 XA = 5.0
+# horizontal extent of the upper body's bevelled corners (--chamfer): the reference mesh's
+# first element, kept on every mesh so that a mesh study compares one geometry
+CHAMFER_LENGTH = 0.1
 
 
 def parse_args(argv=None):
@@ -281,8 +295,10 @@ class Mesh:
                     nid[0] += 1
                     x = x0 + (x1 - x0) * i / nx
                     y = y0 + (y1 - y0) * j / ny
-                    if i in (0, nx):    # bevel the bottom corners of the end faces
-                        y += chamfer * (1.0 - j / ny)
+                    # bevel the bottom corners: the corner raised by `chamfer`, the
+                    # bevel reaching CHAMFER_LENGTH along the bottom on every mesh
+                    d = min(i, nx - i) * (x1 - x0) / nx
+                    y += chamfer * (1.0 - j / ny) * max(0.0, 1.0 - d / CHAMFER_LENGTH)
                     self.nodes.append(mp.CreateNewNode(nid[0], x, y, 0.0))
                     self.X0.append((x, y))
                     ids[i, j] = nid[0]
@@ -539,6 +555,11 @@ def main(argv=None):
         return U, V
 
     rows, diag = [], []
+    csv_file = open(a.out, "w")  # noqa: SIM115 (closed after the loop)
+    diag_file = open(os.path.splitext(a.out)[0] + ".diag.csv", "w")  # noqa: SIM115
+    csv_file.write("# Kratos plane-stress continuum drop: {}\n".format(" ".join(sys.argv[1:])))
+    csv_file.write("t,A_uy,E_total,yc_fall,min_gap\n")
+    diag_file.write("t,E_kin,E_strain,E_pot,n_active_slave,nl_iter,converged\n")
     snaps, next_snap = [], [0.0]
     t_valid = None
     reason = None
@@ -573,8 +594,11 @@ def main(argv=None):
             snaps.append((t, x.copy(), np.array([n.Is(KM.ACTIVE) for n in slave_nodes])))
             next_snap[0] += a.snapshots
         diag.append((t, kin, strain, pot, n_act, nit, int(conv)))
+        csv_file.write("{:.6f},{:.8e},{:.8e},{:.8e},{:.8e}\n".format(*rows[-1]))
+        diag_file.write("{:.6f},{:.8e},{:.8e},{:.8e},{:d},{:d},{:d}\n".format(*diag[-1]))
 
     record(0.0, True, 0)
+    interrupted = False
     while analysis.KeepAdvancingSolutionLoop():
         analysis.time = analysis._AdvanceTime()
         try:
@@ -583,6 +607,11 @@ def main(argv=None):
             nit = pinfo[KM.NL_ITERATION_NUMBER] if a.scheme == "implicit" else 1
             analysis.FinalizeSolutionStep()
             analysis.OutputSolutionStep()
+        except KeyboardInterrupt:
+            interrupted = True
+            print(f"interrupted at t = {analysis.time:.6f}: writing what was computed",
+                  file=con, flush=True)
+            break
         except RuntimeError as err:        # e.g. "ELEMENT ID: n INVERTED"
             msg = str(err).strip().splitlines()
             key = [m for m in msg if "INVERTED" in m] or [m for m in msg if "rror" in m] or msg
@@ -602,6 +631,8 @@ def main(argv=None):
                   f"min_gap={r[4]:+.5f}  it={nit:d}  nonconv={len(nonconv):d}  "
                   f"wall={time.time() - t_wall0:.0f}s", file=con, flush=True)
             next_print += a.progress
+            csv_file.flush()
+            diag_file.flush()
         if (a.stop_invalid is not None and t_valid is not None
                 and analysis.time > t_valid + a.stop_invalid):
             print(f"stopping: result invalid since t = {t_valid:.4f} ({reason})",
@@ -637,6 +668,7 @@ def main(argv=None):
         "nonlinear_iterations": total_it if a.scheme == "implicit" else None,
         "nonconverged_steps": len(nonconv),
         "aborted": aborted,
+        "interrupted": interrupted,
         "first_nonconverged_t": nonconv[0] if nonconv else None,
         "initial_penalty": penalty_used, "scale_factor": scale_used,
         "first_impact_t": t_imp,
@@ -653,17 +685,10 @@ def main(argv=None):
         "valid_until": valid_until,
         "invalid_reason": reason,
     }
-    with open(a.out, "w") as f:
-        f.write("# Kratos plane-stress continuum drop: {}\n".format(" ".join(sys.argv[1:])))
-        f.write("# valid_until = {:.6f} s{}\n".format(valid_until,
-                                                ("  (" + reason + ")") if reason else ""))
-        f.write("t,A_uy,E_total,yc_fall,min_gap\n")
-        for r in rows:
-            f.write("{:.6f},{:.8e},{:.8e},{:.8e},{:.8e}\n".format(*r))
-    with open(os.path.splitext(a.out)[0] + ".diag.csv", "w") as f:
-        f.write("t,E_kin,E_strain,E_pot,n_active_slave,nl_iter,converged\n")
-        for r in diag:
-            f.write("{:.6f},{:.8e},{:.8e},{:.8e},{:d},{:d},{:d}\n".format(*r))
+    csv_file.write("# valid_until = {:.6f} s{}\n".format(valid_until,
+                                                   ("  (" + reason + ")") if reason else ""))
+    csv_file.close()
+    diag_file.close()
     if snaps:
         np.savez_compressed(os.path.splitext(a.out)[0] + ".npz",
                             t=np.array([s_[0] for s_ in snaps]),

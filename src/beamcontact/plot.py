@@ -240,7 +240,7 @@ def plot_run_overlay(runs: list[tuple[str, dict[str, np.ndarray]]], column: str,
                      path: Path | None, title: str = "") -> Figure:
     """One history column of several labelled runs against time or load factor."""
     abscissa = "t" if "t" in runs[0][1] else "load_factor"
-    ylabel = "smallest gap [m]" if column == "min_gap" else \
-        f"{column.rsplit('_', 1)[0]} {column.rsplit('_', 1)[-1]} [m]"
+    named = {"min_gap": "smallest gap [m]", "E_total": "total energy E_total [J]"}
+    ylabel = named.get(column) or f"{column.rsplit('_', 1)[0]} {column.rsplit('_', 1)[-1]} [m]"
     return plot_overlay([(label, h[abscissa], h[column]) for label, h in runs], path,
                  "t [s]" if abscissa == "t" else "load factor", ylabel, title)

@@ -151,7 +151,16 @@ def result_columns(point_names: list[str]) -> list[str]:
     per_point = [c for p in point_names for c in (f"{p}_first_amplitude",
                                                   f"{p}_first_amplitude_t")]
     return ["status", "message", "first_impact_time", *per_point, "min_gap",
-            "max_penetration", "steps", "newton_iterations", "cutbacks", "wall_time_s"]
+            "max_penetration", *ENERGY_COLUMNS, "steps", "newton_iterations", "cutbacks",
+            "wall_time_s"]
+
+
+# the energy account of a dynamic run (summary.json's "energy"; empty in statics): E_total
+# at the start and the end, what the integrator dissipated and what the contact set's
+# changes added, and E_total's end + dissipated - set changes - start (zero when the
+# account closes)
+ENERGY_COLUMNS = ("E_total_initial", "E_total_final", "E_dissipated", "E_set_change",
+                  "balance_residual")
 
 
 def member_row(member: Member, summary: dict | None, point_names: list[str]) -> dict:
@@ -166,6 +175,9 @@ def member_row(member: Member, summary: dict | None, point_names: list[str]) -> 
     for key in ("first_impact_time", "min_gap", "max_penetration", "steps",
                 "newton_iterations", "cutbacks", "wall_time_s"):
         row[key] = s.get(key)
+    energy = s.get("energy") or {}
+    for key in ENERGY_COLUMNS:
+        row[key] = energy.get(key)
     return row
 
 
@@ -238,8 +250,9 @@ def _execute(todo, out_dir, workers, scheduler, events, summaries, table,
 
 
 def plot_sweep(members: list[Member], out_dir: Path, point_names: list[str]) -> list[Path]:
-    """``plots/<point>_uy.png`` and ``_ux.png`` (and ``min_gap.png`` with contact): one curve
-    per member that has a history, labelled by its parameters (Figs. 7-10)."""
+    """``plots/<point>_uy.png`` and ``_ux.png`` (and ``min_gap.png`` with contact,
+    ``E_total.png`` in dynamics: the energy account of each run beside its motion): one
+    curve per member that has a history, labelled by its parameters (Figs. 7-10)."""
     from beamcontact.plot import plot_run_overlay
 
     runs = []
@@ -254,7 +267,8 @@ def plot_sweep(members: list[Member], out_dir: Path, point_names: list[str]) -> 
     (out_dir / "plots").mkdir(exist_ok=True)
     title = ", ".join(k for k, _ in members[0].params)
     written = []
-    for column in [f"{p}_{c}" for p in point_names for c in ("uy", "ux")] + ["min_gap"]:
+    for column in ([f"{p}_{c}" for p in point_names for c in ("uy", "ux")]
+                   + ["min_gap", "E_total"]):
         if all(column in h and np.any(np.isfinite(h[column])) for _, h in runs):
             path = out_dir / "plots" / f"{column}.png"
             plot_run_overlay(runs, column, path, f"sweep over {title}")

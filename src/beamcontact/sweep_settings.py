@@ -129,14 +129,18 @@ def _short_keys(keys: list[str]) -> list[str]:
 
 
 def format_value(v: Any) -> str:
-    """Compact text of a parameter value (labels, folder names, sweep.csv)."""
+    """Compact text of a parameter value (labels, folder names, sweep.csv) that reads back
+    as the same value: 12 significant digits where they do, else every digit (a study of
+    round-off moves a value by one unit in the last place)."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, float):
         if v != 0.0 and not 1e-3 <= abs(v) < 1e4:
             mantissa, exponent = f"{v:.12e}".split("e")
-            return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
-        return f"{v:.12g}"
+            text = f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
+        else:
+            text = f"{v:.12g}"
+        return text if float(text) == v else repr(v)
     if isinstance(v, list):
         return "[" + ",".join(format_value(x) for x in v) + "]"
     return str(v)
