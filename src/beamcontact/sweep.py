@@ -146,6 +146,14 @@ def dask_client(workers: int, scheduler: str | None,
         yield client
 
 
+# the energy account of a dynamic run (summary.json's "energy"; empty in statics): E_total
+# at the start and the end, what the integrator dissipated and what the contact set's
+# changes added, and E_total's end + dissipated - set changes - start (zero when the
+# account closes)
+ENERGY_COLUMNS = ("E_total_initial", "E_total_final", "E_dissipated", "E_set_change",
+                  "balance_residual")
+
+
 def result_columns(point_names: list[str]) -> list[str]:
     """Columns of sweep.csv after the parameters."""
     per_point = [c for p in point_names for c in (f"{p}_first_amplitude",
@@ -153,14 +161,6 @@ def result_columns(point_names: list[str]) -> list[str]:
     return ["status", "message", "first_impact_time", *per_point, "min_gap",
             "max_penetration", *ENERGY_COLUMNS, "steps", "newton_iterations", "cutbacks",
             "wall_time_s"]
-
-
-# the energy account of a dynamic run (summary.json's "energy"; empty in statics): E_total
-# at the start and the end, what the integrator dissipated and what the contact set's
-# changes added, and E_total's end + dissipated - set changes - start (zero when the
-# account closes)
-ENERGY_COLUMNS = ("E_total_initial", "E_total_final", "E_dissipated", "E_set_change",
-                  "balance_residual")
 
 
 def member_row(member: Member, summary: dict | None, point_names: list[str]) -> dict:
