@@ -174,3 +174,31 @@ def test_round_off_never_rejects_a_step(tmp_path):
     summary = run_case(parse_case(raw), "", tmp_path)
     assert summary["status"] == "completed", summary["message"]
     assert summary["t_final"] == pytest.approx(0.05)
+
+
+def test_energy_added_by_unresolved_impacts_is_warned_of(tmp_path):
+    """The coarse-grained free collision at a fixed 2 ms step (error and energy control
+    off) crosses the potential without resolving it: the integrator adds about half the
+    energy, the account still closes, and the run says so; with the default error control
+    the impact is resolved and nothing is said."""
+    from beamcontact.summary import integration_energy_warning
+
+    said = "the time integration added"
+    resolved = run_case(parse_case(_free_collision("cg")), "", tmp_path / "resolved")
+    raw = _free_collision("cg")
+    raw["solver"] = {"error_tol": 0.0, "energy_tol": 0.0}
+    fixed = run_case(parse_case(raw), "", tmp_path / "fixed")
+    for s in (resolved, fixed):
+        assert s["status"] == "completed", s["message"]
+        assert abs(s["energy"]["balance_residual"]) < 1e-9 * s["energy"]["E_total_initial"]
+    scale = max(fixed["energy"]["E_total_initial"], fixed["energy"]["E_kin_max"])
+    assert fixed["energy"]["E_dissipated_min"] < -0.05 * scale
+    assert resolved["energy"]["E_dissipated_min"] > -0.01 * scale
+    assert not any(w.startswith(said) for w in resolved["warnings"])
+    warned = [w for w in fixed["warnings"] if w.startswith(said)]
+    assert len(warned) == 1 and "solver.error_tol = 0" in warned[0]
+    assert integration_energy_warning(None, True) is None
+    assert integration_energy_warning({"E_total_initial": 10.0, "E_kin_max": 4.0,
+                                       "E_dissipated_min": -0.4}, False) is None
+    assert "smaller solver.error_tol" in integration_energy_warning(
+        {"E_total_initial": 10.0, "E_kin_max": 4.0, "E_dissipated_min": -0.6}, False)

@@ -45,6 +45,7 @@ from beamcontact.stop_signals import stopped_by
 from beamcontact.summary import (
     contact_summary,
     effective_settings,
+    integration_energy_warning,
     set_change_warning,
     unfinished_amplitude_warning,
 )
@@ -169,6 +170,9 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
             warnings.append(resolution_warning(res, [b.name for b in case.beams]))
     if contact is not None and contact.law.closest_pairs:
         warnings.append(set_change_warning(summary.get("energy"), contact.law.pairing))
+    if case.analysis.kind == "dynamic":
+        warnings.append(integration_energy_warning(summary.get("energy"),
+                                                   case.solver.error_tol == 0.0))
     warnings.append(unfinished_amplitude_warning(summary.get("first_amplitude") or {}))
     summary["warnings"] = [w for w in warnings if w is not None]
     summary.update({"title": case.title, "kind": case.analysis.kind,
@@ -491,6 +495,7 @@ def _dynamic_results(rec: RunRecord, contact) -> dict:
                    "E_total_final": float(h["E_total"][-1]),
                    "E_kin_max": float(h["E_kin"].max()),
                    "E_dissipated": float(h["E_dissipated"][-1]),
+                   "E_dissipated_min": float(h["E_dissipated"].min()),
                    "E_set_change": float(h["E_set_change"][-1]),
                    "balance_residual": float(h["E_total"][-1] + h["E_dissipated"][-1]
                                              - h["E_set_change"][-1] - h["E_total"][0])},

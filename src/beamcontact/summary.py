@@ -102,6 +102,30 @@ def unfinished_amplitude_warning(first_amplitude: dict) -> str | None:
             f"analysis.t_end gives the amplitude)")
 
 
+def integration_energy_warning(energy: dict | None, fixed_steps: bool,
+                               limit: float = 0.05) -> str | None:
+    """A warning when the time integration added more than ``limit`` of the energy scale
+    (the larger of the initial total and the largest kinetic energy) at some point of the
+    run (``E_dissipated_min``, the least cumulative E_dissipated), else None.
+
+    A conservative system's integrator adds energy when its steps cross a stiff part of a
+    contact potential without resolving it (docs/theory.md, "Energy account"): at fixed
+    steps (``solver.error_tol = 0``) an impact can add a large part of E_total, which no
+    conclusion drawn from the run should rest on.
+    """
+    if not energy or "E_dissipated_min" not in energy:
+        return None
+    scale = max(abs(energy["E_total_initial"]), energy.get("E_kin_max", 0.0))
+    added = -energy["E_dissipated_min"]
+    if scale <= 0.0 or added <= limit * scale:
+        return None
+    advice = ("solver.error_tol = 0 keeps the steps fixed, so the impacts are not resolved; "
+              "the default error control resolves them" if fixed_steps
+              else "a smaller solver.error_tol or energy_tol resolves the impacts better")
+    return (f"the time integration added up to {added:.4g} J ({100 * added / scale:.2g} % of "
+            f"{scale:.4g} J; the least E_dissipated in history.csv): {advice}")
+
+
 def set_change_warning(energy: dict | None, pairing: str, limit: float = 0.01) -> str | None:
     """A warning when IPIP's set changes moved the energy by more than ``limit`` of its
     scale (the larger of the initial total and the largest kinetic energy), else None.
