@@ -294,6 +294,11 @@ SOLID_STUDIES = (
     ("bossak_0.1_mesh2_4e8", BOSSAK + MESH2 + ("--penalty", "4e8")),
     ("bossak_0.1_mesh3_3e8", BOSSAK + MESH3 + ("--penalty", "3e8", "--t-end", "1.8")),
     ("bossak_0.1_mesh3_5.2e8", BOSSAK + MESH3 + ("--penalty", "5.2e8", "--t-end", "1.8")),
+    # the same meshes with the augmented Lagrangian ("hard" contact: no penalty to scale),
+    # through the third contact where the penalty fails on the finer meshes
+    ("bossak_0.1_mesh1_alm", BOSSAK + ("--contact", "alm", "--t-end", "1.8")),
+    ("bossak_0.1_mesh2_alm", BOSSAK + MESH2 + ("--contact", "alm", "--t-end", "1.8")),
+    ("bossak_0.1_mesh3_alm", BOSSAK + MESH3 + ("--contact", "alm", "--t-end", "1.8")),
 )
 
 
