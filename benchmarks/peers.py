@@ -307,6 +307,8 @@ def case_solid_studies(tmp: Path, args):
     3 hours on one core); a run whose JSON exists in --solid-out/studies is kept; the table
     of benchmarks/peers/README.md. A first amplitude that comes after the run's
     ``valid_until`` (its own overlap check) is marked: it is not a result."""
+    import fig7
+
     del tmp
     out = args.solid_out / "studies"
     out.mkdir(parents=True, exist_ok=True)
@@ -319,8 +321,7 @@ def case_solid_studies(tmp: Path, args):
         if not Path(str(csv) + ".json").is_file():
             _kratos(args, csv, *options)
         s = json.loads(Path(str(csv) + ".json").read_text())
-        rows = [ln for ln in csv.read_text().splitlines() if not ln.startswith("#")]
-        h = np.genfromtxt(rows, delimiter=",", names=True)
+        h = fig7.read_table(csv)
         first = h["t"] < 0.8  # the first impact is at 0.750 s
         overlap = -100 * min(0.0, float(h["min_gap"][first].min()))
         dip = (h["t"] > 1.0) & (h["t"] < 1.2)  # before the second collision

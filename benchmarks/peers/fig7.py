@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from beamcontact.io.results import read_history
 from beamcontact.summary import first_excursion_extreme
 
 GAP_CONTACT = 1e-3  # [m]
@@ -42,28 +43,34 @@ A_MOVES = 1e-3  # [m]
 ENERGY_DRIFT = 0.1  # a peer's curve ends where its E_total leaves +-10 % of its start
 
 
+def read_table(path: Path) -> dict[str, np.ndarray]:
+    """A peer's or drop_solid.py's CSV as columns; drop_solid.py's comment lines (its
+    command, valid_until) are not the header."""
+    lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
+    h = np.genfromtxt(lines, delimiter=",", names=True)
+    return {name: h[name] for name in h.dtype.names}
+
+
 def load(path: Path) -> dict:
     """t, A_uy, the first impact and the second collision of one curve."""
     cut = None
     if path.is_dir():
-        h = np.genfromtxt(path / "history.csv", delimiter=",", names=True)
+        h = read_history(path / "history.csv")
         s = json.loads((path / "summary.json").read_text())
         impacts = s.get("impacts") or []
         t, uy, gap = h["t"], h["A_uy"], h["min_gap"]
         second = impacts[1]["start"] if len(impacts) > 1 else None
     else:
-        # drop_solid.py's comment lines (its command, valid_until) are not the header
-        lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
-        h = np.genfromtxt(lines, delimiter=",", names=True)
+        h = read_table(path)
         t, uy = h["t"], h["A_uy"]
-        gap = h["min_gap"] if "min_gap" in h.dtype.names else None
+        gap = h.get("min_gap")
         # drop_solid.py writes OUT.json beside OUT (OUT.csv.json; results/solid.json)
         sidecars = [p for p in (Path(str(path) + ".json"), path.with_suffix(".json"))
                     if p.is_file()]
         side = json.loads(sidecars[0].read_text()) if sidecars else {}
         second = side.get("second_collision_t")
         until = side.get("valid_until")
-        if until is None and "E_total" in h.dtype.names:
+        if until is None and "E_total" in h:
             drift = np.abs(h["E_total"] - h["E_total"][0]) > ENERGY_DRIFT * h["E_total"][0]
             until = float(t[np.argmax(drift)]) if drift.any() else None
         if until is not None and until < t[-1]:

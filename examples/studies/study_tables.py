@@ -80,8 +80,10 @@ def departures(runs: list[tuple[str, Path]], reference: Path) -> list[str]:
     reference's."""
     import numpy as np
 
+    from beamcontact.io.results import read_history
+
     def load(run):
-        h = np.genfromtxt(run / "history.csv", delimiter=",", names=True)
+        h = read_history(run / "history.csv")
         amp = json.loads((run / "summary.json").read_text())["first_amplitude"]["A"]["uy"]
         return h["t"], h["A_uy"], amp
 

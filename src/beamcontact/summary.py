@@ -102,6 +102,12 @@ def unfinished_amplitude_warning(first_amplitude: dict) -> str | None:
             f"analysis.t_end gives the amplitude)")
 
 
+def _energy_scale(energy: dict) -> float:
+    """The scale the energy warnings compare with: the larger of the initial total and the
+    largest kinetic energy of the run."""
+    return max(abs(energy["E_total_initial"]), energy.get("E_kin_max", 0.0))
+
+
 def integration_energy_warning(energy: dict | None, fixed_steps: bool,
                                limit: float = 0.05) -> str | None:
     """A warning when the time integration added more than ``limit`` of the energy scale
@@ -115,7 +121,7 @@ def integration_energy_warning(energy: dict | None, fixed_steps: bool,
     """
     if not energy or "E_dissipated_min" not in energy:
         return None
-    scale = max(abs(energy["E_total_initial"]), energy.get("E_kin_max", 0.0))
+    scale = _energy_scale(energy)
     added = -energy["E_dissipated_min"]
     if scale <= 0.0 or added <= limit * scale:
         return None
@@ -136,7 +142,7 @@ def set_change_warning(energy: dict | None, pairing: str, limit: float = 0.01) -
     """
     if not energy or "E_set_change" not in energy:
         return None
-    scale = max(abs(energy["E_total_initial"]), energy.get("E_kin_max", 0.0))
+    scale = _energy_scale(energy)
     jump = energy["E_set_change"]
     if scale <= 0.0 or abs(jump) <= limit * scale:
         return None
