@@ -17,7 +17,7 @@ Runs, each in its own process, one after the other on this machine:
 * ``solid`` (not by default): the paper's Fig. 7 complete, the bundled benchmark with both
   beam models, the continuum model in Kratos (peers/drop_solid.py) and PyElastica and
   Exudyn on the same problem, overlaid (peers/fig7.py), every output in ``--solid-out``;
-  about 10 minutes;
+  about 25 minutes (the hard-contact solid 15 of them);
 * ``solid-studies`` (not by default): the continuum model's studies (penalty, numerical
   damping, step, mesh), about 3 hours on one core.
 
@@ -226,12 +226,22 @@ def _kratos(args, out: Path, *options: str) -> float:
     return wall
 
 
+# the continuum model that converges with the mesh through the first amplitude (the mesh
+# study below): Kratos' augmented Lagrangian ("hard" contact), Bossak -0.1, twice as fine
+BOSSAK = ("--time-scheme", "bossak", "--alpha-m", "-0.1")
+MESH2 = ("--nx-lower", "200", "--nx-upper", "60", "--ny", "8")
+MESH3 = ("--nx-lower", "300", "--nx-upper", "90", "--ny", "12")
+SOLID_HARD = BOSSAK + MESH2 + ("--contact", "alm")
+
+
 def case_solid(tmp: Path, args):
     """The paper's Fig. 7 complete (issue 24): the bundled benchmark with both beam models
     (the bundled 60 segments per element and the paper's 20 for CG; IPIP with the paper's
-    "zones" and with "points"), the continuum model (drop_solid.py, its reference settings) and the
-    independent beam codes on the same problem (PEER_PROBLEM=bundled); the overlay and the
-    table of benchmarks/peers/fig7.py; every output kept in --solid-out."""
+    "zones" and with "points"), the continuum model twice (drop_solid.py: its reference
+    settings, the paper's linear penalty law on the reference mesh; and hard contact on the
+    mesh twice as fine, SOLID_HARD, the converged one), the independent beam codes on the
+    same problem (PEER_PROBLEM=bundled); the overlay and the table of
+    benchmarks/peers/fig7.py; every output kept in --solid-out."""
     del tmp
     out = args.solid_out
     out.mkdir(parents=True, exist_ok=True)
@@ -254,6 +264,11 @@ def case_solid(tmp: Path, args):
         walls.append((label, r["process"]))
     walls.append(("solid, Kratos (one thread)", _kratos(args, out / "solid.csv")))
     curves.append(f"solid (Kratos)={out / 'solid.csv'}")
+    # the converged continuum model: hard contact on the mesh twice as fine (the mesh
+    # study, SOLID_STUDIES: the penalty fails there in the third contact)
+    walls.append(("solid, hard contact, finer mesh (Kratos, one thread)",
+                  _kratos(args, out / "solid_hard.csv", *SOLID_HARD)))
+    curves.append(f"solid, hard contact (Kratos)={out / 'solid_hard.csv'}")
     bundled = {"PEER_PROBLEM": "bundled"}
     for label, script in (("PyElastica", "drop_pyelastica.py"), ("Exudyn", "drop_exudyn.py")):
         csv = out / f"{script.removeprefix('drop_').removesuffix('.py')}.csv"
@@ -272,9 +287,6 @@ def case_solid(tmp: Path, args):
 
 # The continuum model's studies (issue 24, item 2): the paper's Abaqus studies of Figs. 11
 # and 12 on this model, and its mesh convergence; (name, drop_solid.py options)
-BOSSAK = ("--time-scheme", "bossak", "--alpha-m", "-0.1")
-MESH2 = ("--nx-lower", "200", "--nx-upper", "60", "--ny", "8")
-MESH3 = ("--nx-lower", "300", "--nx-upper", "90", "--ny", "12")
 SOLID_STUDIES = (
     ("reference", ()),
     ("penalty_3e7", ("--penalty", "3e7")),
