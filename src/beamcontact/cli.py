@@ -192,8 +192,12 @@ def run(
     out = _fresh_dir(case.parent.name if case.name == "case.toml" else case.stem) \
         if out is None else out
     _check_out_dir(out)
+    import beamcontact.runner  # noqa: F401
     from beamcontact.stop_signals import stop_signals_interrupt
 
+    # the objects of the imports are never garbage: moved out of the collector's sight,
+    # its full collections during the run take 0.1-0.2 s less (each walked them all)
+    gc.freeze()
     with stop_signals_interrupt():
         summary = _run_with_progress(parsed, text, out, parsed.title or case.name,
                                      show=not quiet, restart=restart, overwrite=overwrite)

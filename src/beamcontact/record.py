@@ -12,6 +12,7 @@ step.
 import math
 import os
 import re
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -31,6 +32,21 @@ from beamcontact.io.results import (
 )
 from beamcontact.io.vtk import VtkSeries, write_obstacles
 from beamcontact.setup.model import Discretization, point_sampler, polyline_matrix
+
+
+def _import_figures() -> None:
+    """Import what the figures need (matplotlib and Pillow: about 0.4 s) while the steps
+    run: the compiled time loop releases the GIL, so on the native engine the import takes
+    no wall time of its own. A failure here is left to the figures to report."""
+    with suppress(Exception):
+        import matplotlib.backends.backend_agg  # noqa: F401
+        import matplotlib.patches  # noqa: F401
+        from matplotlib import font_manager
+        from PIL import ImageDraw, ImageFont  # noqa: F401
+
+        import beamcontact.plot  # noqa: F401
+
+        font_manager.findfont("DejaVu Sans")
 
 
 def _reason(exc: Exception) -> str:
@@ -66,18 +82,28 @@ class OutputPoints:
                           for p in case.output.points]
         self._ref = [R @ x_ref[idx] for idx, R in self._samplers]
 
+    @staticmethod
+    def _point(idx: np.ndarray, R: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The point of basis values R on control points idx of x (k, n_cp, 2): (k, 2).
+        The terms are summed in order, so that a row is the same whatever its alignment
+        in memory (the order of a BLAS dot product depends on it)."""
+        p = np.zeros((len(x), 2))
+        for j, r in zip(idx, R, strict=True):
+            p += r * x[:, j]
+        return p
+
     def columns(self) -> list[str]:
         """history.csv columns of the points."""
         return [f"{n}_{c}" for n in self.names for c in ("x", "y", "ux", "uy")]
 
-    def values(self, x: np.ndarray) -> list[float]:
-        """Positions and displacements of every point for control points x, in the order
-        of :meth:`columns`."""
-        row = []
+    def table(self, x: np.ndarray) -> list[list[float]]:
+        """Positions and displacements of every point, in the order of :meth:`columns`,
+        for k sets of control points x (k, n_cp, 2): k rows."""
+        parts = []
         for (idx, R), ref in zip(self._samplers, self._ref, strict=True):
-            p = R @ x[idx]
-            row += [float(p[0]), float(p[1]), float(p[0] - ref[0]), float(p[1] - ref[1])]
-        return row
+            p = self._point(idx, R, x)
+            parts += [p, p - ref]
+        return np.concatenate(parts, axis=1).tolist() if parts else [[] for _ in x]
 
 
 @dataclass(frozen=True)
@@ -146,6 +172,8 @@ class RunRecord:
         if out_dir is not None:
             with writing(f"the results in {out_dir}", self):
                 self.files = _Files(self, out_dir, case_text, n_dof, resume)
+            self._figures = threading.Thread(target=_import_figures, name="figures-import")
+            self._figures.start()
         if resume is not None and out_dir is not None:
             self._read_back(out_dir, resume)
             if not self.files.vtk.resumed:  # beams.pvd missing or damaged: from results.h5
@@ -178,20 +206,34 @@ class RunRecord:
             cutbacks: int, **extra) -> None:
         """Append one history row (``values`` holds the diagnostics' columns, ``extra`` the
         step "dt" in dynamics; a missing one is a KeyError: the header is fixed)."""
+        self.rows([step], [parameter], np.asarray(u)[None], [values], [iterations],
+                  [cutbacks], **{k: [v] for k, v in extra.items()})
+
+    def rows(self, steps, parameters, u, values: list[dict], iterations, cutbacks,
+             **extra) -> None:
+        """Append k history rows at once (:meth:`row` of each; u (k, n_dof), ``extra``
+        sequences of k), written to history.csv in one piece."""
+        points = self.points.table(self.x_ref + np.asarray(u).reshape(len(steps), -1, 2))
         # Python numbers only: history.csv writes them by repr
-        row = [int(step), float(parameter), *self.points.values(self.x(u)),
-               *[float(values[c]) for c in self._value_columns], int(iterations),
-               int(cutbacks), *[float(extra[c]) for c in self._extra_columns]]
-        self._rows.append(np.array(row, dtype=float))
+        rows = [[int(step), float(parameter), *p, *[float(v[c]) for c in self._value_columns],
+                 int(n), int(c), *[float(extra[e][k]) for e in self._extra_columns]]
+                for k, (step, parameter, p, v, n, c) in enumerate(
+                    zip(steps, parameters, points, values, iterations, cutbacks, strict=True))]
+        self._rows += [np.array(row, dtype=float) for row in rows]
         if self._writes():
             with writing(self.out_dir / "history.csv", self):
-                self.files.history.write(row)
+                self.files.history.write_many(rows)
 
     def state(self, step: int, parameter: float, u, **extra) -> None:
         """Save a full state (results.h5; only with an output folder)."""
+        self.states([step], [parameter], np.asarray(u)[None],
+                    **{k: np.asarray(v)[None] for k, v in extra.items()})
+
+    def states(self, steps, parameters, u: np.ndarray, **extra: np.ndarray) -> None:
+        """Save k full states at once (:meth:`state` of each; every array (k, ...))."""
         if self._writes():
             with writing(self.out_dir / "results.h5", self):
-                self.files.states.write(step, parameter, u, **extra)
+                self.files.states.write_many(steps, parameters, u, **extra)
 
     def snapshot(self, parameter: float, u) -> None:
         """Keep the control points at this instant (and write a VTU file)."""
@@ -261,6 +303,7 @@ class RunRecord:
             self._plots()
 
     def _plots(self) -> None:
+        self._figures.join()
         from beamcontact.plot import (
             animate,
             plot_energies,

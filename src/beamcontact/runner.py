@@ -389,16 +389,27 @@ class _Start:
     rec: RunRecord
 
 
-def _save(rec: RunRecord, s: DynamicStep, iterations_total: int,
-          rejections_total: np.ndarray) -> None:
-    """One accepted step into history.csv and results.h5 (with what a restart needs: the
-    state, the step to try next, the energy account and the run's counters so far)."""
-    st = s.state
-    rec.row(s.step, s.t, st.u, s.diagnostics, s.iterations, s.cutbacks, dt=s.dt)
-    rec.state(s.step, s.t, st.u, v=st.v, a=st.a, f_pot=st.f_pot,
-              load_theta=st.load_state.theta, load_tangent=st.load_state.tangent, dt=s.dt,
-              dt_next=s.dt_next, iterations_total=iterations_total, cutbacks_total=s.cutbacks,
-              rejections_total=rejections_total, energy_account=_account_record(s.diagnostics))
+def _save(rec: RunRecord, steps: list[DynamicStep], iterations_total: list[int],
+          rejections_total: list[np.ndarray]) -> None:
+    """Accepted steps into history.csv and results.h5 (with what a restart needs: the
+    state, the step to try next, the energy account and the run's counters so far), all
+    at once."""
+    def stacked(get) -> np.ndarray:
+        return np.stack([np.asarray(get(s)) for s in steps])
+
+    number, t, dt = stacked(lambda s: s.step), stacked(lambda s: s.t), stacked(lambda s: s.dt)
+    u = stacked(lambda s: s.state.u)
+    rec.rows(number, t, u, [s.diagnostics for s in steps], [s.iterations for s in steps],
+             [s.cutbacks for s in steps], dt=dt)
+    rec.states(number, t, u, v=stacked(lambda s: s.state.v), a=stacked(lambda s: s.state.a),
+               f_pot=stacked(lambda s: s.state.f_pot),
+               load_theta=stacked(lambda s: s.state.load_state.theta),
+               load_tangent=stacked(lambda s: s.state.load_state.tangent), dt=dt,
+               dt_next=stacked(lambda s: s.dt_next),
+               iterations_total=np.asarray(iterations_total),
+               cutbacks_total=stacked(lambda s: s.cutbacks),
+               rejections_total=np.stack(rejections_total),
+               energy_account=stacked(lambda s: _account_record(s.diagnostics)))
 
 
 def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_Start, object]:
@@ -431,7 +442,8 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
     diag0 = begin.engine.energies(state, first)
     diag0 = {**diag0, "E_total": total_energy(diag0), "error": 0.0, "E_dissipated": 0.0,
              "E_set_change": 0.0}
-    _save(rec, DynamicStep(0, 0.0, 0.0, an.dt, state, 0, 0, diag0), 0, np.zeros(len(KINDS)))
+    _save(rec, [DynamicStep(0, 0.0, 0.0, an.dt, state, 0, 0, diag0)], [0],
+          [np.zeros(len(KINDS))])
     rec.snapshot(0.0, state.u)
     return _Start(state, 0, an.dt, 0, 0, np.zeros(len(KINDS)),
                   _account_from_record(_account_record(diag0)), rec), begin
@@ -448,22 +460,25 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
     tally = _Tally(steps=start.step0, iterations=start.iterations, cutbacks=start.cutbacks,
                    reached=float(start.state.t), rejected=start.rejected)
 
-    def on_step(s: DynamicStep) -> None:
-        s = replace(s, cutbacks=start.cutbacks + s.cutbacks)
-        rejected = start.rejected + np.asarray(s.rejected or np.zeros(len(KINDS)))
-        tally.accept(s.step, s.t, start.iterations + s.iterations_total - tally.iterations,
-                     s.cutbacks, rejected)
-        _save(rec, s, tally.iterations, rejected)
-        if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
-            rec.snapshot(s.t, s.state.u)
-            next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval
+    def on_steps(steps: list[DynamicStep]) -> None:
+        steps = [replace(s, cutbacks=start.cutbacks + s.cutbacks) for s in steps]
+        rejected = [start.rejected + np.asarray(s.rejected or np.zeros(len(KINDS)))
+                    for s in steps]
+        iterations = [start.iterations + s.iterations_total for s in steps]
+        s = steps[-1]
+        tally.accept(s.step, s.t, iterations[-1] - tally.iterations, s.cutbacks, rejected[-1])
+        _save(rec, steps, iterations, rejected)
+        for s in steps:
+            if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
+                rec.snapshot(s.t, s.state.u)
+                next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval
         if progress is not None:
             progress(ProgressInfo(s.t / an.t_end, "t", s.t, s.step, s.dt, s.iterations))
 
     try:
         result = solve_dynamic(begin.engine, start.state, an.t_end, prepared.length,
                                begin.control, dt_start=start.dt_start, step0=start.step0,
-                               on_step=on_step, capacity=case.contact.capacity,
+                               on_steps=on_steps, capacity=case.contact.capacity,
                                account=start.account)
         summary = {"status": result.status, "message": result.message,
                    "steps": start.step0 + result.steps,

@@ -96,9 +96,11 @@ if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
     from beamcontact.contact.broadphase import SearchCapacity
     from beamcontact.contact.problem import ContactProblem
 
-# what a loop hands over for every accepted step, in order: the state after it, its report
-# (values, counts) and the controller's state right after it was accepted
-Emit = Callable[[object, np.ndarray, np.ndarray, np.ndarray], None]
+# what a loop hands over for its accepted steps, in order and as many at once as it has
+# (one per attempt in the host loop, one call's worth in a compiled loop): the states
+# after them, their reports (values (k, len(VALUES)), counts (k, len(COUNTS))) and the
+# controller's states right after each was accepted (k, len(ctl))
+Emit = Callable[[list, np.ndarray, np.ndarray, np.ndarray], None]
 
 
 class Engine(Protocol):
@@ -112,8 +114,8 @@ class Engine(Protocol):
     An engine that runs the loop itself (the native one) also has ``runs_loop`` True and
     ``advance(state, ctl, limits, emit) -> (state, stopping attempt or None, seconds of
     its first attempt)``: it makes the attempts, asks :func:`~beamcontact.dynamics.
-    control.decide` about each, and emits every accepted step, from ``state`` and the
-    controller's state ``ctl`` until t_end or a stop.
+    control.decide` about each, and emits every accepted step (:data:`Emit`), from
+    ``state`` and the controller's state ``ctl`` until t_end or a stop.
     """
 
     name: str
@@ -174,6 +176,7 @@ class DynamicResult:
 def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: StepControl,
                   *, dt_start: float | None = None, step0: int = 0,
                   on_step: Callable[[DynamicStep], None] | None = None,
+                  on_steps: Callable[[list[DynamicStep]], None] | None = None,
                   capacity: int | SearchCapacity = 64,
                   account: EnergyAccount | None = None) -> DynamicResult:
     """Integrate from ``state`` to ``t_end`` with adaptive steps (module docstring).
@@ -191,6 +194,9 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
         on_step: called with every accepted step; its diagnostics hold the energies,
             momentum, min_gap, the local error ``error`` [m] and the cumulative
             ``E_dissipated`` and ``E_set_change``.
+        on_steps: called with the same steps as many at once as the loop makes them
+            (a compiled loop's call), in order, before ``on_step`` sees them: for a
+            writer that takes many rows at a time.
         capacity: initial length of the contact candidate list, or both capacities of
             the search (:class:`SearchCapacity`); they grow on overflow.
         account: the energy account of the state (a restart); default zero sums and the
@@ -204,9 +210,16 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
     ctl = new_state(engine.time(state), control.dt if dt_start is None else dt_start,
                     _initial_account(engine, state, first, account))
 
-    def emit(new, values: np.ndarray, counts: np.ndarray, after: np.ndarray) -> None:
+    def emit(states: list, values: np.ndarray, counts: np.ndarray, after: np.ndarray) -> None:
+        if on_step is None and on_steps is None:
+            return
+        steps = [accepted_step(*row, step0) for row in zip(states, values, counts, after,
+                                                            strict=True)]
+        if on_steps is not None:
+            on_steps(steps)
         if on_step is not None:
-            on_step(accepted_step(new, values, counts, after, step0))
+            for s in steps:
+                on_step(s)
 
     if getattr(engine, "runs_loop", False):
         state, stopped, first_s = engine.advance(state, ctl, limits, emit)
@@ -278,7 +291,7 @@ def _host_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emi
             return state, attempt, first_s
         if outcome == ACCEPT:
             state = engine.at_time(attempt.state, float(ctl[T]))
-            emit(state, values, counts, ctl.copy())
+            emit([state], values[None], counts[None], ctl.copy()[None])
     return state, None, first_s
 
 

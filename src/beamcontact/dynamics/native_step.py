@@ -573,11 +573,12 @@ class NativeEngine:
                                       NO_CONTACT, newton, ctl, limits, u, v, a, f_pot, theta,
                                       tangent, budget, *out, made, last_values, last_counts)
             finally:
-                for k in range(int(made[0])):
-                    after = out[8][k]
-                    emit(DynState(float(after[T]), out[0][k], out[1][k], out[2][k], out[3][k],
-                                  LoadState(theta=out[4][k], tangent=out[5][k])),
-                         out[6][k], out[7][k], after)
+                k = int(made[0])
+                if k:
+                    emit([DynState(float(after[T]), *(x[j] for x in out[:4]),
+                                   LoadState(theta=out[4][j], tangent=out[5][j]))
+                          for j, after in enumerate(out[8][:k])],
+                         out[6][:k], out[7][:k], out[8][:k])
             seconds = time.perf_counter() - t0
             if first_s is None:
                 first_s = waited + seconds  # the compilation of the loop, wherever

@@ -67,9 +67,14 @@ class HistoryWriter:
         """Append one row, its values (Python ints and floats) in the order of the
         columns: each by its repr, the text that csv.writer gives them, without a call per
         value."""
-        if len(row) != len(self.columns):
-            raise ValueError(f"a row of {len(row)} values for {len(self.columns)} columns")
-        self._file.write(",".join(map(repr, row)) + "\n")
+        self.write_many([row])
+
+    def write_many(self, rows: list[list]) -> None:
+        """Append rows (each as :meth:`write` takes it) in one write, then flush."""
+        for row in rows:
+            if len(row) != len(self.columns):
+                raise ValueError(f"a row of {len(row)} values for {len(self.columns)} columns")
+        self._file.write("".join(",".join(map(repr, row)) + "\n" for row in rows))
         self._file.flush()
 
     def close(self) -> None:
@@ -180,12 +185,20 @@ class StateWriter:
         States reach the file in batches, at least every ``flush_seconds`` of wall time and
         on close (also after Ctrl-C); history.csv is written every step regardless.
         """
-        state = {"step": np.int64(step), "parameter": float(parameter),
-                 "u": np.asarray(u, float),
-                 **{k: np.asarray(v, float) for k, v in extra.items()}}
-        self._pending.append(state)
-        self._sizes.append(sum(np.asarray(v).nbytes for v in state.values()))
-        self._queued += self._sizes[-1]
+        self.write_many([step], [parameter], np.asarray(u, float)[None],
+                        **{k: np.asarray(v, float)[None] for k, v in extra.items()})
+
+    def write_many(self, steps, parameters, u: np.ndarray, **extra: np.ndarray) -> None:
+        """Queue k states at once (:meth:`write` of each; u and ``extra`` (k, ...))."""
+        block = {"step": np.asarray(steps, np.int64), "parameter": np.asarray(parameters, float),
+                 "u": np.asarray(u, float), **{k: np.asarray(v, float) for k, v in extra.items()}}
+        k = len(block["step"])
+        if k == 0:
+            return
+        self._pending.append(block)
+        size = sum(v.nbytes for v in block.values()) // k
+        self._sizes += [size] * k
+        self._queued += size * k
         if (time.monotonic() - self._last_flush > self.flush_seconds
                 or self._queued > self.flush_bytes):
             self.flush()
@@ -204,12 +217,19 @@ class StateWriter:
                                            side="right"))
                 full = OutputError(f"cannot write {self._path}: its disk is full "
                                    f"({free / 2**20:.1f} MB free)")
-                del self._pending[fits:]
+                kept = []
+                for block in self._pending:
+                    rows = min(len(block["step"]), fits)
+                    if rows:
+                        kept.append({name: v[:rows] for name, v in block.items()})
+                    fits -= rows
+                self._pending = kept
         if self._pending:
             st = self._h5["states"]
-            n, k = st["step"].shape[0], len(self._pending)
+            n = st["step"].shape[0]
             for name in self._pending[0]:
-                values = np.stack([p[name] for p in self._pending])
+                values = np.concatenate([p[name] for p in self._pending])
+                k = len(values)
                 if name not in st:
                     shape = values.shape[1:]
                     st.create_dataset(name, (0, *shape), maxshape=(None, *shape),
