@@ -101,6 +101,10 @@ def test_format_value():
               np.nextafter(1e-5, 1.0)):
         assert float(format_value(float(v))) == v
     assert format_value(float(np.nextafter(1000.0, 2000.0))) == "1000.0000000000001"
+    # TOML's infinities and NaN (a sweep over a bound that may be switched off) read back
+    text = ",".join(format_value(v) for v in (float("inf"), float("-inf"), float("nan")))
+    back = parse_setting(f"contact.max_penetration={text}").values
+    assert back[:2] == (float("inf"), float("-inf")) and np.isnan(back[2])
 
 
 @pytest.mark.parametrize("sets, fragment", [

@@ -11,6 +11,7 @@ case schema.
 
 import copy
 import itertools
+import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -135,6 +136,8 @@ def format_value(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, float):
+        if not math.isfinite(v):  # TOML's inf, -inf, nan
+            return repr(v)
         if v != 0.0 and not 1e-3 <= abs(v) < 1e4:
             mantissa, exponent = f"{v:.12e}".split("e")
             text = f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
