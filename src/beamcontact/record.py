@@ -80,7 +80,8 @@ class OutputPoints:
         self.names = [p.name for p in case.output.points]
         self._samplers = [point_sampler(disc, p.beam, at_fraction(p.at))
                           for p in case.output.points]
-        self._ref = [R @ x_ref[idx] for idx, R in self._samplers]
+        # the same sum as every row's, so that a point at rest has zero displacement
+        self._ref = [self._point(idx, R, x_ref[None])[0] for idx, R in self._samplers]
 
     @staticmethod
     def _point(idx: np.ndarray, R: np.ndarray, x: np.ndarray) -> np.ndarray:
