@@ -106,3 +106,22 @@ def test_interrupt_inside_the_compiled_loop_keeps_every_accepted_step():
     assert [r.step for r in rows] == list(range(1, len(rows) + 1))
     for a, b in zip(rows, full[:-1], strict=False):  # (full's last step lands on 0.8 s)
         assert a.t == b.t and np.array_equal(a.state.u, b.state.u)
+
+
+def test_a_steps_strain_energy_is_that_of_its_state():
+    """The compiled attempt takes E_strain from its last Newton evaluation, which is at the
+    step's solution: it is the strain energy of the accepted state (assembly/
+    native_model.energies), bit for bit, through the first impact and in free flight."""
+    from beamcontact.assembly.native_model import energies
+
+    raw = _drop("cg", 0.8)
+    start = dynamic_start(prepare(parse_case(raw)))
+    rows = []
+    solve_dynamic(start.engine, start.state, 0.8, start.prepared.length, start.control,
+                  on_step=rows.append)
+    nm = start.engine.nm
+    assert len(rows) > 100 and max(r.diagnostics["E_strain"] for r in rows) > 0.0
+    for r in rows:
+        s = r.state
+        assert r.diagnostics["E_strain"] == energies(nm, s.u, 1.0, s.load_state.theta,
+                                                     s.load_state.tangent)[0]

@@ -234,13 +234,15 @@ def _gravity_energy(R, wq, g_ref, e, gravity, x_e):
 @njit
 def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out):
     """r_pot added to r_out and the potential's blocks into k_out[b] (the elements, then
-    the loads); r_el (n_el, m) is scratch."""
+    the loads); r_el (n_el, m) is scratch. Returns the strain energy at x (the sum of
+    :func:`energies`' E_strain, bit for bit: the same element energies in the same
+    order)."""
     n_el = nm.conn.shape[0]
     # k_out whole, not k_out[:n_el]: the kernel writes only rows e < n_el, and a slice
     # would be typed as a non-contiguous array and compile a slower element kernel
-    energy_native.block_strain_residual_tangent(x, nm.conn, nm.dR, nm.ddR, nm.wq, nm.g_ref,
-                                                nm.K_ref, nm.eta, nm.w_eta, nm.E, r_el,
-                                                k_out)
+    e_strain = energy_native.block_strain_residual_tangent(
+        x, nm.conn, nm.dR, nm.ddR, nm.wq, nm.g_ref, nm.K_ref, nm.eta, nm.w_eta, nm.E, r_el,
+        k_out)
     R, wq, g_ref, gravity, dofs = nm.R, nm.wq, nm.g_ref, nm.gravity, nm.block_dofs
     for e in range(n_el):
         c = lam * nm.rho_area[e] * nm.gravity_on[e]
@@ -256,6 +258,7 @@ def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out):
             x_l, nm.load_R[i], nm.load_dR[i], nm.load_force[i], nm.load_moment[i],
             theta_n[i], t_n[i], lam, r_l, k_out[n_el + i])
         _scatter_add(nm.block_dofs[n_el + i], r_l, r_out)
+    return e_strain
 
 
 @njit
@@ -283,12 +286,26 @@ def energies(nm, u, lam, theta_n, t_n):
     x = _positions(nm.x_ref, u)
     n_el, n = nm.conn.shape
     x_e = np.empty((n, 2))
-    e_strain = e_grav = e_ext = 0.0
+    e_strain = 0.0
     for e in range(n_el):
         _gather(x, nm.conn[e], x_e)
         e_strain += energy_native.element_strain_energy(x_e, nm.dR[e], nm.ddR[e], nm.wq[e],
                                                         nm.g_ref[e], nm.K_ref[e], nm.eta[e],
                                                         nm.w_eta[e], nm.E[e])
+    e_grav, e_ext = external_energies(nm, u, lam, theta_n, t_n)
+    return e_strain, e_grav, e_ext
+
+
+@njit
+def external_energies(nm, u, lam, theta_n, t_n):
+    """(E_gravity, E_ext) of :func:`energies` alone: a time step takes E_strain from its
+    last Newton evaluation (:func:`hht_residual_blocks`), at the same u."""
+    x = _positions(nm.x_ref, u)
+    n_el, n = nm.conn.shape
+    x_e = np.empty((n, 2))
+    e_grav = e_ext = 0.0
+    for e in range(n_el):
+        _gather(x, nm.conn[e], x_e)
         e_grav += (nm.rho_area[e] * nm.gravity_on[e]
                    * _gravity_energy(nm.R, nm.wq, nm.g_ref, e, nm.gravity, x_e))
     for i in range(nm.load_conn.shape[0]):
@@ -296,7 +313,7 @@ def energies(nm, u, lam, theta_n, t_n):
         e_ext += lam * loads_native.point_load_potential(
             x_e, nm.load_R[i], nm.load_dR[i], nm.load_force[i], nm.load_moment[i], theta_n[i],
             t_n[i])
-    return e_strain, lam * e_grav, e_ext
+    return lam * e_grav, e_ext
 
 
 @njit_parallel
@@ -359,15 +376,18 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
         r = r_inertia + (1 + alpha) r_pot - alpha f_pot_n,   K = K_i + (1 + alpha) K_p,
     into r_out (n_dof,) and k_out (n_blocks, m, m), with r_pot (the history f_pot of the
     next step once converged) into r_pot_out (n_dof,). Arguments as in
-    :func:`inertia_residual_blocks` and :func:`potential_residual_blocks`."""
+    :func:`inertia_residual_blocks` and :func:`potential_residual_blocks`. Returns the
+    strain energy at u (:func:`energies`' E_strain, bit for bit)."""
     c = 1.0 + alpha
     r_pot_out[:] = 0.0
     r_el = np.empty((nm.conn.shape[0], nm.block_dofs.shape[1]))
-    _potential(nm, _positions(nm.x_ref, u), 1.0, theta_n, t_n, r_el, r_pot_out, k_out)
+    e_strain = _potential(nm, _positions(nm.x_ref, u), 1.0, theta_n, t_n, r_el, r_pot_out,
+                          k_out)
     for i in range(r_out.shape[0]):
         r_out[i] = c * r_pot_out[i] - alpha * f_pot_n[i]
     k_out *= c
     _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, True)
+    return e_strain
 
 
 @njit

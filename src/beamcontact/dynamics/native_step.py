@@ -125,9 +125,9 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
     """The HHT residual at u with supports applied (global numbering, into r), f_pot(u)
     (contact included) into r_pot, and the tangent assembled into the bordered arrays
     with its residual in layout order (r_layout); returns (||r||, the contact energy at
-    u)."""
-    nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r,
-                             r_pot, k_blocks)
+    u, the strain energy at u)."""
+    e_strain = nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
+                                        t_n, r, r_pot, k_blocks)
     bordered.zero(band, B, C, D)
     bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
     e_contact = 0.0
@@ -136,7 +136,7 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
                                    position, band, B, C, D, kl, ku, r_pot, r)
     norm = bordered.supported_residual(band, B, C, D, kl, ku, free_layout, position, r,
                                        r_layout)
-    return norm, e_contact
+    return norm, e_contact, e_strain
 
 
 @njit
@@ -173,16 +173,18 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
                          nm.block_dofs.shape[1]))
     args = (position, positions, free_layout, band, B, C, D, kl, ku, r, f_pot, r_layout,
             k_blocks)
-    norm0, e_contact = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
-                                         f_pot_n, theta_n, t_n, *args)
+    norm0, e_contact, e_strain = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs,
+                                                   alpha, f_pot_n, theta_n, t_n, *args)
     done, failed = norm0 <= atol, not np.isfinite(norm0)
     k, rn = 0, norm0
     while not done and not failed and k < max_iterations:
+        # without contact blocks no entry couples the band's beam with the border
         step, finite = bordered.newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position,
-                                              r_layout, du, u)
-        # the last evaluation is at the solution: its contact energy is the step's
-        rn, e_contact = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
-                                          f_pot_n, theta_n, t_n, *args)
+                                              r_layout, du, u, contact[2].shape[0] > 0)
+        # the last evaluation is at the solution: its contact and strain energies are the
+        # step's
+        rn, e_contact, e_strain = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs,
+                                                    alpha, f_pot_n, theta_n, t_n, *args)
         converged = rn <= rtol * norm0 + atol or step <= utol_h
         diverged = diverge_after > 0 and k + 1 >= diverge_after and rn > norm0
         failed = not np.isfinite(rn) or not finite or diverged
@@ -190,7 +192,7 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
         k += 1
     _newmark(u, u_n, v_n, a_n, coeffs[0], h, coeffs[2], gamma, v, a)
     nmod.update_load_state(nm, u, theta_n, t_n, theta, tangent)
-    e_strain, e_gravity, e_ext = nmod.energies(nm, u, 1.0, theta, tangent)
+    e_gravity, e_ext = nmod.external_energies(nm, u, 1.0, theta, tangent)
     e_kin, p = nmod.kinetic_energy_momentum(nm, u, v)
     if np.isnan(e_kin_n):
         e_kin_n = nmod.kinetic_energy_momentum(nm, u_n, v_n)[0]

@@ -475,10 +475,14 @@ def dense_solve(D, ipiv, y):
 
 
 @njit
-def factor(band, B, C, D, kl, ku, ipiv, ipiv_s):
+def factor(band, B, C, D, kl, ku, ipiv, ipiv_s, coupled=True):
     """Factorise K in place (module docstring): band LU of A, B <- X = A^{-1} B,
     D <- LU of S = D - C X. Returns 0, j + 1 for a zero pivot in column j of A, or
     n_b + k + 1 for one in column k of S.
+
+    ``coupled`` False says that B and C are zero (no contact couples the band's beam with
+    the others, as in free flight): X = 0 and S = D, and the passes over B and C are
+    skipped (they would only add exact zeros).
 
     All m columns of B are solved for, although contact leaves most of them zero: packing
     the nonzero ones into a narrower block costs as much as it saves at these sizes (the
@@ -493,13 +497,14 @@ def factor(band, B, C, D, kl, ku, ipiv, ipiv_s):
         return info
     if m == 0:
         return 0
-    band_solve_rows(band, kl, ku, ipiv, B)
-    for k in range(m):
-        for j in range(n_b):
-            cv = C[k, j]
-            if cv != 0.0:
-                for q in range(m):
-                    D[k, q] -= cv * B[j, q]
+    if coupled:
+        band_solve_rows(band, kl, ku, ipiv, B)
+        for k in range(m):
+            for j in range(n_b):
+                cv = C[k, j]
+                if cv != 0.0:
+                    for q in range(m):
+                        D[k, q] -= cv * B[j, q]
     info = dense_lu(D, ipiv_s)
     if info != 0:
         return n_b + info
@@ -507,9 +512,9 @@ def factor(band, B, C, D, kl, ku, ipiv, ipiv_s):
 
 
 @njit
-def solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x):
+def solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x, coupled=True):
     """x = K^{-1} rhs with the factors of a successful :func:`factor` (rhs unchanged; it
-    may be x itself)."""
+    may be x itself); ``coupled`` as there."""
     n_b = band.shape[0]
     m = D.shape[0]
     for i in range(n_b + m):
@@ -518,40 +523,43 @@ def solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x):
     if m == 0:
         return
     y = x[n_b:]
-    for k in range(m):
-        s = y[k]
-        for j in range(n_b):
-            s -= C[k, j] * x[j]
-        y[k] = s
-    dense_solve(D, ipiv_s, y)
-    for i in range(n_b):
-        s = x[i]
+    if coupled:
         for k in range(m):
-            s -= B[i, k] * y[k]
-        x[i] = s
+            s = y[k]
+            for j in range(n_b):
+                s -= C[k, j] * x[j]
+            y[k] = s
+    dense_solve(D, ipiv_s, y)
+    if coupled:
+        for i in range(n_b):
+            s = x[i]
+            for k in range(m):
+                s -= B[i, k] * y[k]
+            x[i] = s
 
 
 @njit
-def factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x):
-    """x = K^{-1} rhs: :func:`factor` (in place) then :func:`solve`. Returns factor's info;
-    on a zero pivot (info != 0) x is all NaN."""
-    info = factor(band, B, C, D, kl, ku, ipiv, ipiv_s)
+def factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x, coupled=True):
+    """x = K^{-1} rhs: :func:`factor` (in place) then :func:`solve` (``coupled`` as
+    there). Returns factor's info; on a zero pivot (info != 0) x is all NaN."""
+    info = factor(band, B, C, D, kl, ku, ipiv, ipiv_s, coupled)
     if info != 0:
         x[:] = np.nan
         return info
-    solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x)
+    solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x, coupled)
     return 0
 
 
 @njit
-def newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position, r_layout, du, u):
+def newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position, r_layout, du, u,
+                  coupled=True):
     """One Newton update on the assembled bordered system: K du = -r (r in layout order,
     negated in place; K factorised in place), then u[i] += du[position[i]] for u in the
     global numbering. Returns (max |du|, whether every du is finite); a zero pivot gives a
-    NaN du (:func:`factor_solve`)."""
+    NaN du (:func:`factor_solve`; ``coupled`` as :func:`factor`)."""
     for i in range(r_layout.shape[0]):
         r_layout[i] = -r_layout[i]
-    factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, du)
+    factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, du, coupled)
     step, finite = 0.0, True
     for i in range(u.shape[0]):
         d = du[position[i]]
