@@ -131,11 +131,13 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
     bordered.zero(band, B, C, D)
     bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
     e_contact = 0.0
-    if contact[2].shape[0] > 0:
+    # without contact blocks no entry couples the band's beam with the border
+    coupled = contact[2].shape[0] > 0
+    if coupled:
         e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha,
                                    position, band, B, C, D, kl, ku, r_pot, r)
     norm = bordered.supported_residual(band, B, C, D, kl, ku, free_layout, position, r,
-                                       r_layout)
+                                       r_layout, coupled)
     return norm, e_contact, e_strain
 
 
@@ -178,7 +180,6 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     done, failed = norm0 <= atol, not np.isfinite(norm0)
     k, rn = 0, norm0
     while not done and not failed and k < max_iterations:
-        # without contact blocks no entry couples the band's beam with the border
         step, finite = bordered.newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position,
                                               r_layout, du, u, contact[2].shape[0] > 0)
         # the last evaluation is at the solution: its contact and strain energies are the

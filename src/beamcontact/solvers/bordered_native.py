@@ -210,12 +210,13 @@ def add_diagonal(band, D, kl, ku, values):
 
 
 @njit
-def apply_supports(band, B, C, D, kl, ku, free, r):
+def apply_supports(band, B, C, D, kl, ku, free, r, coupled=True):
     """In place, as :func:`beamcontact.assembly.system.apply_supports`:
     K <- K * free[:, None] * free[None, :] + diag(1 - free) and r <- r * free (free = 1
     for a free dof, 0 for a supported one: its row and column become the identity's and
     its residual 0, so its Newton increment is 0). Same products in the same order, so
     the values are the dense ones exactly; the fill-in rows of the band are left alone.
+    ``coupled`` False: B and C are zero (:func:`factor`) and stay as they are.
     """
     n_b = band.shape[0]
     m = D.shape[0]
@@ -225,14 +226,16 @@ def apply_supports(band, B, C, D, kl, ku, free, r):
         for i in range(max(0, j - ku), min(n_b, j + kl + 1)):
             band[j, kv + i - j] = band[j, kv + i - j] * free[i] * fj
         band[j, kv] += 1.0 - fj
-    for i in range(n_b):
-        fi = free[i]
-        for k in range(m):
-            B[i, k] = B[i, k] * fi * free[n_b + k]
+    if coupled:
+        for i in range(n_b):
+            fi = free[i]
+            for k in range(m):
+                B[i, k] = B[i, k] * fi * free[n_b + k]
     for k in range(m):
         fk = free[n_b + k]
-        for j in range(n_b):
-            C[k, j] = C[k, j] * fk * free[j]
+        if coupled:
+            for j in range(n_b):
+                C[k, j] = C[k, j] * fk * free[j]
         for q in range(m):
             D[k, q] = D[k, q] * fk * free[n_b + q]
         D[k, k] += 1.0 - fk
@@ -570,13 +573,14 @@ def newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position, r_layout, du, u
 
 
 @njit
-def supported_residual(band, B, C, D, kl, ku, free_layout, position, r, r_layout):
-    """The supports applied to the assembled system (:func:`apply_supports`): the residual
-    r (global numbering) copied into layout order (r_layout), both modified, r written
-    back; returns ||r||."""
+def supported_residual(band, B, C, D, kl, ku, free_layout, position, r, r_layout,
+                       coupled=True):
+    """The supports applied to the assembled system (:func:`apply_supports`, ``coupled``
+    as there): the residual r (global numbering) copied into layout order (r_layout),
+    both modified, r written back; returns ||r||."""
     for i in range(r.shape[0]):
         r_layout[position[i]] = r[i]
-    apply_supports(band, B, C, D, kl, ku, free_layout, r_layout)
+    apply_supports(band, B, C, D, kl, ku, free_layout, r_layout, coupled)
     norm = 0.0
     for i in range(r.shape[0]):
         r[i] = r_layout[position[i]]
