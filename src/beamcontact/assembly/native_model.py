@@ -292,15 +292,15 @@ def energies(nm, u, lam, theta_n, t_n):
         e_strain += energy_native.element_strain_energy(x_e, nm.dR[e], nm.ddR[e], nm.wq[e],
                                                         nm.g_ref[e], nm.K_ref[e], nm.eta[e],
                                                         nm.w_eta[e], nm.E[e])
-    e_grav, e_ext = external_energies(nm, u, lam, theta_n, t_n)
+    e_grav, e_ext = external_energies(nm, x, lam, theta_n, t_n)
     return e_strain, e_grav, e_ext
 
 
 @njit
-def external_energies(nm, u, lam, theta_n, t_n):
-    """(E_gravity, E_ext) of :func:`energies` alone: a time step takes E_strain from its
-    last Newton evaluation (:func:`hht_residual_blocks`), at the same u."""
-    x = _positions(nm.x_ref, u)
+def external_energies(nm, x, lam, theta_n, t_n):
+    """(E_gravity, E_ext) of :func:`energies` alone, at the control points x (n_cp, 2): a
+    time step takes E_strain from its last Newton evaluation (:func:`hht_residual_blocks`),
+    at the same x."""
     n_el, n = nm.conn.shape
     x_e = np.empty((n, 2))
     e_grav = e_ext = 0.0

@@ -193,7 +193,8 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
         k += 1
     _newmark(u, u_n, v_n, a_n, coeffs[0], h, coeffs[2], gamma, v, a)
     nmod.update_load_state(nm, u, theta_n, t_n, theta, tangent)
-    e_gravity, e_ext = nmod.external_energies(nm, u, 1.0, theta, tangent)
+    e_gravity, e_ext = nmod.external_energies(nm, nmod._positions(nm.x_ref, u), 1.0, theta,
+                                              tangent)
     e_kin, p = nmod.kinetic_energy_momentum(nm, u, v)
     if np.isnan(e_kin_n):
         e_kin_n = nmod.kinetic_energy_momentum(nm, u_n, v_n)[0]
