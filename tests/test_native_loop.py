@@ -125,3 +125,46 @@ def test_a_steps_strain_energy_is_that_of_its_state():
         s = r.state
         assert r.diagnostics["E_strain"] == energies(nm, s.u, 1.0, s.load_state.theta,
                                                      s.load_state.tangent)[0]
+
+
+def test_the_residual_alone_is_the_one_of_the_evaluation_with_the_tangent():
+    """An iterate expected to have converged is checked on its residual alone
+    (native_step._residual); the tangent follows only if it has not, so the two
+    evaluations must give the same residual, f_pot, norm and energies, bit for bit: at
+    the states of the bundled CG drop through its first impact, under the contact set
+    there and without contact."""
+    from beamcontact.assembly.native_model import new_blocks
+    from beamcontact.dynamics import native_step as ns
+
+    raw = _drop("cg", 0.8)
+    start = dynamic_start(prepare(parse_case(raw)))
+    rows = []
+    solve_dynamic(start.engine, start.state, 0.8, start.prepared.length, start.control,
+                  on_step=rows.append)
+    engine = start.engine
+    nm, sysm = engine.nm, engine.system
+    ar, lay = sysm.arrays, sysm.layout
+    n = nm.n_dof
+    alpha = engine.alpha
+    beta, gamma = 0.25 * (1.0 - alpha) ** 2, 0.5 - alpha
+    in_contact = [i for i in range(1, len(rows)) if rows[i].diagnostics["E_contact"] > 0.0]
+    assert len(in_contact) > 10
+    checked = 0
+    for i in in_contact[::max(len(in_contact) // 8, 1)] + [1]:
+        before, now = rows[i - 1].state, rows[i].state
+        h = rows[i].dt
+        coeffs = np.array([1.0 / (beta * h * h), h, (1.0 - 2.0 * beta) / (2.0 * beta), gamma])
+        x = nm.x_ref + now.u.reshape(-1, 2)
+        for frozen in (engine._contact.frozen_at(x), ns.NO_CONTACT):
+            common = (nm, frozen, now.u, before.u, before.v, before.a, coeffs, alpha,
+                      before.f_pot, before.load_state.theta, before.load_state.tangent)
+            r, f_pot, r_layout = np.empty(n), np.empty(n), np.empty(n)
+            full = ns._residual_tangent(*common, sysm.position, sysm.block_positions,
+                                        sysm.free, ar.band, ar.B, ar.C, ar.D, lay.kl, lay.ku,
+                                        r, f_pot, r_layout, new_blocks(nm))
+            r_alone, f_alone = np.empty(n), np.empty(n)
+            alone = ns._residual(*common, r_alone, f_alone, new_blocks(nm))
+            assert alone == full
+            assert np.array_equal(r_alone, r) and np.array_equal(f_alone, f_pot)
+            checked += frozen[2].shape[0] > 0
+    assert checked > 5  # contact blocks took part

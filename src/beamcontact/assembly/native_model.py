@@ -232,17 +232,17 @@ def _gravity_energy(R, wq, g_ref, e, gravity, x_e):
 
 
 @njit
-def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out):
+def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out, tangent=True):
     """r_pot added to r_out and the potential's blocks into k_out[b] (the elements, then
-    the loads); r_el (n_el, m) is scratch. Returns the strain energy at x (the sum of
-    :func:`energies`' E_strain, bit for bit: the same element energies in the same
-    order)."""
+    the loads; ``tangent`` False: the element blocks are left alone); r_el (n_el, m) is
+    scratch. Returns the strain energy at x (the sum of :func:`energies`' E_strain, bit
+    for bit: the same element energies in the same order)."""
     n_el = nm.conn.shape[0]
     # k_out whole, not k_out[:n_el]: the kernel writes only rows e < n_el, and a slice
     # would be typed as a non-contiguous array and compile a slower element kernel
     e_strain = energy_native.block_strain_residual_tangent(
         x, nm.conn, nm.dR, nm.ddR, nm.wq, nm.g_ref, nm.K_ref, nm.eta, nm.w_eta, nm.E, r_el,
-        k_out)
+        k_out, tangent)
     R, wq, g_ref, gravity, dofs = nm.R, nm.wq, nm.g_ref, nm.gravity, nm.block_dofs
     for e in range(n_el):
         c = lam * nm.rho_area[e] * nm.gravity_on[e]
@@ -318,9 +318,9 @@ def external_energies(nm, x, lam, theta_n, t_n):
 
 @njit_parallel
 def _inertia_elements(conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref, rho_area,
-                      rho_inertia, r_el, k_el):
-    """Every element's inertia residual into r_el[e] and its block into k_el[e], the
-    elements on the cores (each whole on one thread)."""
+                      rho_inertia, r_el, k_el, tangent):
+    """Every element's inertia residual into r_el[e] and (``tangent``) its block into
+    k_el[e], the elements on the cores (each whole on one thread)."""
     n_el, n = conn.shape
     for e in prange(n_el):
         w_e = np.empty((5, n, 2))
@@ -332,23 +332,24 @@ def _inertia_elements(conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref, 
         _gather(x_ref, c, w_e[4])
         inertia_native.element_inertia_residual_tangent(
             w_e[0], w_e[1], w_e[2], w_e[3], w_e[4], coeffs, R[e], dR[e], wq[e], g_ref[e],
-            rho_area[e], rho_inertia[e], r_el[e], k_el[e])
+            rho_area[e], rho_inertia[e], r_el[e], k_el[e], tangent)
 
 
 @njit
-def _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, add):
+def _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, add, tangent=True):
     """The inertia residual added to r_out and its element blocks written into
-    k_out[:n_el], or added to them if ``add`` (in element order, whatever the threads)."""
+    k_out[:n_el], or added to them if ``add`` (in element order, whatever the threads);
+    ``tangent`` False: the blocks are left alone."""
     shape = nm.x_ref.shape
     n_el, n = nm.conn.shape
     r_el = np.empty((n_el, 2 * n))
-    k_el = np.empty((n_el, 2 * n, 2 * n)) if add else k_out
+    k_el = np.empty((n_el, 2 * n, 2 * n)) if add and tangent else k_out
     _inertia_elements(nm.conn, nm.x_ref, u.reshape(shape), u_n.reshape(shape),
                       v_n.reshape(shape), a_n.reshape(shape), coeffs, nm.R, nm.dR, nm.wq,
-                      nm.g_ref, nm.rho_area, nm.rho_inertia, r_el, k_el)
+                      nm.g_ref, nm.rho_area, nm.rho_inertia, r_el, k_el, tangent)
     for e in range(n_el):
         _scatter_add(nm.block_dofs[e], r_el[e], r_out)
-        if add:
+        if add and tangent:
             k_out[e] += k_el[e]
 
 
@@ -370,23 +371,26 @@ def inertia_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out):
 
 @njit
 def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r_out,
-                        r_pot_out, k_out):
+                        r_pot_out, k_out, tangent=True):
     """The HHT Newton residual and tangent blocks of dynamics/hht.py's ``hht_step``
     (eq. 36, lam = 1, before supports):
         r = r_inertia + (1 + alpha) r_pot - alpha f_pot_n,   K = K_i + (1 + alpha) K_p,
     into r_out (n_dof,) and k_out (n_blocks, m, m), with r_pot (the history f_pot of the
     next step once converged) into r_pot_out (n_dof,). Arguments as in
     :func:`inertia_residual_blocks` and :func:`potential_residual_blocks`. Returns the
-    strain energy at u (:func:`energies`' E_strain, bit for bit)."""
+    strain energy at u (:func:`energies`' E_strain, bit for bit). ``tangent`` False: the
+    residuals and the energy alone, the same numbers bit for bit, k_out is scratch (the
+    Newton check of an iterate expected to have converged, dynamics/native_step.py)."""
     c = 1.0 + alpha
     r_pot_out[:] = 0.0
     r_el = np.empty((nm.conn.shape[0], nm.block_dofs.shape[1]))
     e_strain = _potential(nm, _positions(nm.x_ref, u), 1.0, theta_n, t_n, r_el, r_pot_out,
-                          k_out)
+                          k_out, tangent)
     for i in range(r_out.shape[0]):
         r_out[i] = c * r_pot_out[i] - alpha * f_pot_n[i]
-    k_out *= c
-    _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, True)
+    if tangent:
+        k_out *= c
+    _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, True, tangent)
     return e_strain
 
 

@@ -64,9 +64,11 @@ def fibre_density_derivatives(g, K, g_ref, K_ref, eta, w_eta, E):
 
 
 @njit
-def _point_derivatives(y0, y1, y2, y3, g_ref, K_ref, eta, w_eta, E, grad_out, hess_out):
+def _point_derivatives(y0, y1, y2, y3, g_ref, K_ref, eta, w_eta, E, grad_out, hess_out,
+                       tangent=True):
     """Gradient and Hessian in y of the energy per unit xi at y = (y0, y1, y2, y3)
-    = (g1x, g1y, g1'x, g1'y); returns the energy.
+    = (g1x, g1y, g1'x, g1'y); returns the energy (``tangent`` False: hess_out is left
+    alone, the energy and gradient are the same numbers).
 
     g = g1 . g1 (eq. 12) and K = c g^(-3/2), c = g1 x g1' (eq. 10-11): dg = 2 (g1, 0),
     d2g = 2 diag(1, 1, 0, 0); dc = (g1'y, -g1'x, -g1y, g1x), d2c = 1 at (0, 3), (3, 0)
@@ -85,10 +87,13 @@ def _point_derivatives(y0, y1, y2, y3, g_ref, K_ref, eta, w_eta, E, grad_out, he
     kg = 1.5 * K * inv_g
     dK = (dc[0] * inv_g15 - kg * dg[0], dc[1] * inv_g15 - kg * dg[1],
           dc[2] * inv_g15, dc[3] * inv_g15)
+    for i in range(4):
+        grad_out[i] = p_g * dg[i] + p_K * dK[i]
+    if not tangent:
+        return psi
     c_dcdg = -1.5 * p_K * inv_g * inv_g15
     c_dgdg = p_gg + 3.75 * p_K * K * inv_g * inv_g
     for i in range(4):
-        grad_out[i] = p_g * dg[i] + p_K * dK[i]
         for j in range(i, 4):  # symmetric
             h = (c_dgdg * dg[i] * dg[j] + p_gK * (dg[i] * dK[j] + dK[i] * dg[j])
                  + p_KK * dK[i] * dK[j] + c_dcdg * (dc[i] * dg[j] + dg[i] * dc[j]))
@@ -116,18 +121,21 @@ def point_strain_derivatives(y, g_ref, K_ref, eta, w_eta, E, grad_out, hess_out)
 
 
 @njit
-def _element(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out, k_out, grad, hess):
+def _element(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out, k_out, grad, hess,
+             tangent=True):
     """:func:`element_strain_residual_tangent` with scratch grad (4,), hess (4, 4)."""
     r_out[:] = 0.0
-    k_out[:, :] = 0.0
+    if tangent:
+        k_out[:, :] = 0.0
     energy = 0.0
     for q in range(wq.shape[0]):
         y0, y1, y2, y3 = _axis_at(x_e, dR, ddR, q)
         w = wq[q]
         energy += w * _point_derivatives(y0, y1, y2, y3, g_ref[q], K_ref[q], eta, w_eta, E,
-                                         grad, hess)
-        _add_point(dR, ddR, q, w, grad, hess, r_out, k_out)
-    _mirror_blocks(k_out)
+                                         grad, hess, tangent)
+        _add_point(dR, ddR, q, w, grad, hess, r_out, k_out, tangent)
+    if tangent:
+        _mirror_blocks(k_out)
     return energy
 
 
@@ -144,15 +152,18 @@ def _mirror_blocks(k_out):
 
 
 @njit
-def _add_point(dR, ddR, q, w, grad, hess, r_out, k_out):
-    """r += w D^T grad and k += w D^T hess D for the basis rows D = (dR_q, ddR_q) of Gauss
-    point q: y = (dR_q x_e, ddR_q x_e), so dof (k, a) enters y_a with dR_qk and y_(2+a)
-    with ddR_qk. Only the 2 x 2 blocks (k, m >= k) of k are formed."""
+def _add_point(dR, ddR, q, w, grad, hess, r_out, k_out, tangent=True):
+    """r += w D^T grad and (``tangent``) k += w D^T hess D for the basis rows
+    D = (dR_q, ddR_q) of Gauss point q: y = (dR_q x_e, ddR_q x_e), so dof (k, a) enters
+    y_a with dR_qk and y_(2+a) with ddR_qk. Only the 2 x 2 blocks (k, m >= k) of k are
+    formed."""
     n = dR.shape[1]
     for k in range(n):
         d, dd = dR[q, k], ddR[q, k]
         for a in range(2):
             r_out[2 * k + a] += w * (d * grad[a] + dd * grad[2 + a])
+            if not tangent:
+                continue
             # row of D^T hess for dof (k, a), then times D for every dof (m, b)
             h0 = w * (d * hess[a, 0] + dd * hess[2 + a, 0])
             h1 = w * (d * hess[a, 1] + dd * hess[2 + a, 1])
@@ -210,11 +221,13 @@ def element_strain_energy(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E):
 
 @njit_parallel
 def block_strain_residual_tangent(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out,
-                                  k_out):
+                                  k_out, tangent=True):
     """:func:`element_strain_residual_tangent` of every element of an ElementBlock
     (fields as in assembly/model.py; x the control points of the whole model (n_cp, 2)),
     into r_out (n_el, 2n) and k_out (n_el, 2n, 2n); returns the total strain energy. The
-    elements on the cores, each whole on one thread: no sum depends on the threads."""
+    elements on the cores, each whole on one thread: no sum depends on the threads.
+    ``tangent`` False: k_out is left alone; the residual and the energy are the same
+    numbers, bit for bit (the tangent's arithmetic is apart from theirs)."""
     n_el, n = conn.shape
     energies = np.empty(n_el)
     for e in prange(n_el):
@@ -224,7 +237,7 @@ def block_strain_residual_tangent(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta
             x_e[k, 1] = x[conn[e, k], 1]
         energies[e] = _element(x_e, dR[e], ddR[e], wq[e], g_ref[e], K_ref[e], eta[e],
                                w_eta[e], E[e], r_out[e], k_out[e], np.empty(4),
-                               np.empty((4, 4)))
+                               np.empty((4, 4)), tangent)
     energy = 0.0
     for e in range(n_el):  # in element order, whatever the threads
         energy += energies[e]

@@ -65,6 +65,9 @@ from beamcontact.solvers import bordered_native as bordered
 from beamcontact.solvers.newton import NewtonOptions
 
 _V = {name: i for i, name in enumerate(VALUES)}
+# a Newton increment this fraction of the one before is taken for the quadratic phase:
+# the iterate is expected to pass the convergence test (:func:`attempt`)
+CONVERGING = 0.01
 
 
 def beam_dofs(nm: nmod.NativeModel) -> list[np.ndarray]:
@@ -142,6 +145,22 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
 
 
 @njit
+def _residual(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r, r_pot,
+              k_blocks):
+    """:func:`_residual_tangent` without the tangent: the supported HHT residual into r,
+    f_pot(u) into r_pot, (||r||, the contact energy, the strain energy), the same numbers
+    bit for bit; k_blocks is scratch."""
+    e_strain = nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
+                                        t_n, r, r_pot, k_blocks, False)
+    e_contact = 0.0
+    if contact[2].shape[0] > 0:
+        no = np.empty((0, 0))
+        e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha,
+                                   np.empty(0, np.int64), no, no, no, no, -1, -1, r_pot, r)
+    return bordered.supported_norm(nm.free, r), e_contact, e_strain
+
+
+@njit
 def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s, kl,
             ku, u_n, v_n, a_n, f_pot_n, theta_n, t_n, h, alpha, rtol, utol, dt_ref,
             total_mass, max_iterations, diverge_after, e_contact_n, e_kin_n, u, v, a, f_pot,
@@ -178,19 +197,31 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     norm0, e_contact, e_strain = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs,
                                                    alpha, f_pot_n, theta_n, t_n, *args)
     done, failed = norm0 <= atol, not np.isfinite(norm0)
-    k, rn = 0, norm0
+    k, rn, last_step = 0, norm0, 0.0
     while not done and not failed and k < max_iterations:
         step, finite = bordered.newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position,
                                               r_layout, du, u, contact[2].shape[0] > 0)
+        # an iterate expected to be the solution (its increment below the tolerance, or
+        # fallen by CONVERGING, Newton's quadratic phase) is checked on its residual
+        # alone; the tangent follows only if it is not (the same residual, bit for bit)
+        light = step <= utol_h or step <= CONVERGING * last_step
         # the last evaluation is at the solution: its contact and strain energies are the
         # step's
-        rn, e_contact, e_strain = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs,
-                                                    alpha, f_pot_n, theta_n, t_n, *args)
+        if light:
+            rn, e_contact, e_strain = _residual(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
+                                                f_pot_n, theta_n, t_n, r, f_pot, k_blocks)
+        else:
+            rn, e_contact, e_strain = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs,
+                                                        alpha, f_pot_n, theta_n, t_n, *args)
         converged = rn <= rtol * norm0 + atol or step <= utol_h
         diverged = diverge_after > 0 and k + 1 >= diverge_after and rn > norm0
         failed = not np.isfinite(rn) or not finite or diverged
         done = converged and not failed
         k += 1
+        if light and not done and not failed and k < max_iterations:
+            _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
+                              t_n, *args)
+        last_step = step
     _newmark(u, u_n, v_n, a_n, coeffs[0], h, coeffs[2], gamma, v, a)
     nmod.update_load_state(nm, u, theta_n, t_n, theta, tangent)
     e_gravity, e_ext = nmod.external_energies(nm, nmod._positions(nm.x_ref, u), 1.0, theta,

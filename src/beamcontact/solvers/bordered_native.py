@@ -586,3 +586,15 @@ def supported_residual(band, B, C, D, kl, ku, free_layout, position, r, r_layout
         r[i] = r_layout[position[i]]
         norm += r[i] * r[i]
     return np.sqrt(norm)
+
+
+@njit
+def supported_norm(free, r):
+    """The residual alone of :func:`supported_residual`, without a matrix: r <- r * free
+    (global numbering, ``free`` as there in that numbering) and ||r||, the same numbers
+    bit for bit (the same products, summed in the same order)."""
+    norm = 0.0
+    for i in range(r.shape[0]):
+        r[i] = r[i] * free[i]
+        norm += r[i] * r[i]
+    return np.sqrt(norm)
