@@ -110,14 +110,7 @@ def njit_parallel(func):
     would find no pool (a segmentation fault, seen with the statics' Newton solve), so the
     pool is started here, with the first parallel kernel."""
     numba.get_num_threads()  # starts the pool (once)
-    if _CACHE_DIR is None:
-        return numba.njit(func, cache=False, parallel=True, **_OPTIONS)
-    saved = numba.config.CACHE_DIR
-    numba.config.CACHE_DIR = str(_CACHE_DIR)
-    try:
-        return numba.njit(func, cache=True, parallel=True, **_OPTIONS)
-    finally:
-        numba.config.CACHE_DIR = saved
+    return _compiled(func, parallel=True)
 
 
 # the most threads the parallel kernels of this process may use (NUMBA_NUM_THREADS, or 1
@@ -194,15 +187,32 @@ class CoreShare:
 prange = numba.prange
 
 
+def _compiled(func, **options):
+    """``numba.njit(func, **options)`` with the project's options and its on-disk cache
+    (compiled anew each process when the cache is off)."""
+    if _CACHE_DIR is None:
+        return numba.njit(func, cache=False, **options, **_OPTIONS)
+    saved = numba.config.CACHE_DIR
+    numba.config.CACHE_DIR = str(_CACHE_DIR)
+    try:
+        return numba.njit(func, cache=True, **options, **_OPTIONS)
+    finally:
+        numba.config.CACHE_DIR = saved
+
+
 def njit(func):
     """``numba.njit(func, cache=True, fastmath=False, error_model="numpy", nogil=True)``
     with the on-disk cache in the project's folder (compiled anew each process when the
     cache is off)."""
-    if _CACHE_DIR is None:
-        return numba.njit(func, cache=False, **_OPTIONS)
-    saved = numba.config.CACHE_DIR
-    numba.config.CACHE_DIR = str(_CACHE_DIR)
-    try:
-        return numba.njit(func, cache=True, **_OPTIONS)
-    finally:
-        numba.config.CACHE_DIR = saved
+    return _compiled(func)
+
+
+def njit_inline(func):
+    """:func:`njit` with ``inline="always"``, for the small helpers of the element
+    kernels: Numba copies the function into each compiled caller, so no call passes
+    arrays. A call to a compiled function passes every array as a structure and counts
+    references on it; for the element kernels of the beam that was 20-35 % of their time
+    (session 18: strain 1.04 -> 0.83 us an element, inertia 0.80 -> 0.67 us, the peer drop's
+    whole process 6 % shorter). Inlining changes no arithmetic: the results are the same
+    bit for bit."""
+    return _compiled(func, inline="always")

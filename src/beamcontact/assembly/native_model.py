@@ -43,7 +43,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._native import njit, njit_parallel, prange
+from beamcontact._native import njit, njit_inline, njit_parallel, prange
 from beamcontact.beam import energy_native, inertia_native, loads_native
 
 
@@ -185,7 +185,7 @@ def _positions(x_ref, u):
     return x_ref + u.reshape(x_ref.shape)
 
 
-@njit
+@njit_inline
 def _gather(w, conn_e, w_e):
     """w_e[k] = w[conn_e[k]] for control-point values w (n_cp, 2)."""
     for k in range(conn_e.shape[0]):
@@ -193,7 +193,7 @@ def _gather(w, conn_e, w_e):
         w_e[k, 1] = w[conn_e[k], 1]
 
 
-@njit
+@njit_inline
 def _scatter_add(dofs, r_e, r_out):
     """r_out[dofs] += r_e."""
     for i in range(dofs.shape[0]):

@@ -23,10 +23,10 @@ few scratch numbers per call (per block for :func:`block_strain_residual_tangent
 
 import numpy as np
 
-from beamcontact._native import njit, njit_parallel, prange
+from beamcontact._native import njit, njit_inline, njit_parallel, prange
 
 
-@njit
+@njit_inline
 def fibre_density_derivatives(g, K, g_ref, K_ref, eta, w_eta, E):
     """psi and its first and second derivatives in (g, K) at one Gauss point (eqs. 23-26,
     30 as in :func:`~beamcontact.beam.energy.fibre_strain_energy_density`).
@@ -63,7 +63,7 @@ def fibre_density_derivatives(g, K, g_ref, K_ref, eta, w_eta, E):
     return psi, psi_g, psi_K, psi_gg, psi_gK, psi_KK
 
 
-@njit
+@njit_inline
 def _point_derivatives(y0, y1, y2, y3, g_ref, K_ref, eta, w_eta, E, grad_out, hess_out,
                        tangent=True):
     """Gradient and Hessian in y of the energy per unit xi at y = (y0, y1, y2, y3)
@@ -151,7 +151,7 @@ def _mirror_blocks(k_out):
                     k_out[2 * m + b, 2 * k + a] = k_out[2 * k + a, 2 * m + b]
 
 
-@njit
+@njit_inline
 def _add_point(dR, ddR, q, w, grad, hess, r_out, k_out, tangent=True):
     """r += w D^T grad and (``tangent``) k += w D^T hess D for the basis rows
     D = (dR_q, ddR_q) of Gauss point q: y = (dR_q x_e, ddR_q x_e), so dof (k, a) enters
@@ -174,7 +174,7 @@ def _add_point(dR, ddR, q, w, grad, hess, r_out, k_out, tangent=True):
                 k_out[2 * k + a, 2 * m + 1] += h1 * dR[q, m] + h3 * ddR[q, m]
 
 
-@njit
+@njit_inline
 def _axis_at(x_e, dR, ddR, q):
     """y = (g1, g1') = (dR_q x_e, ddR_q x_e) at Gauss point q (eq. 10). Rows are indexed,
     not sliced: a slice is a new array whose reference count costs more than the sums."""

@@ -21,10 +21,10 @@ d/du = M_x + gamma / (beta dt) M_v + 1 / (beta dt^2) M_a:
 
 import numpy as np
 
-from beamcontact._native import njit
+from beamcontact._native import njit, njit_inline
 
 
-@njit
+@njit_inline
 def rotational_point(g1x, g1y, v1x, v1y, a1x, a1y, m_out, jac_out, jacobians=True):
     """m = phi n of eq. (29) at one point (as
     :func:`~beamcontact.beam.inertia.rotational_acceleration`) into m_out (2,), and
@@ -88,7 +88,7 @@ def _row_dot(B, q, w_e):
     return sx, sy
 
 
-@njit
+@njit_inline
 def _add_vector(B, q, fx, fy, r_out):
     """r += B_q^T f for the basis row q of B and a point vector f."""
     for k in range(B.shape[1]):
@@ -121,7 +121,7 @@ def _add_mass(B, q, mass, k_out):
             k_out[2 * k + 1, 2 * m + 1] += c
 
 
-@njit
+@njit_inline
 def _add_mass_matrix(R, dR, q, mass, J, k_out):
     """k += mass R_q^T R_q on both directions, then dR_q^T J dR_q, in one pass over k:
     every entry receives the two terms in that order, the numbers of :func:`_add_mass`
@@ -189,7 +189,7 @@ def element_inertia_jacobians(x_e, v_e, a_e, R, dR, wq, g_ref, rho_area, rho_ine
         _add_matrix(dR, q, jac[2], ja_out)
 
 
-@njit
+@njit_inline
 def _newmark(d, d_n, v_n, a_n, coeffs):
     """Newmark v, a of one component (eqs. 33-35), as
     :func:`~beamcontact.assembly.inertia.newmark_kinematics`."""
@@ -246,7 +246,7 @@ def element_inertia_residual_tangent(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, d
         _add_mass_matrix(R, dR, q, mass, J, k_out)
 
 
-@njit
+@njit_inline
 def _point_kinematics(R, dR, q, u_e, un_e, vn_e, an_e, xref_e, coeffs):
     """At Gauss point q: Newmark's acceleration (ax, ay) of the axis point d = R_q u, and
     the axis tangent g1 = dR_q xref + d1 with d1 = dR_q u, its velocity v1 and

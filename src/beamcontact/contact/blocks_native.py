@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from beamcontact._native import njit, njit_parallel, prange
+from beamcontact._native import njit, njit_inline, njit_parallel, prange
 from beamcontact.contact.laws.coarse_grained_native import cg_obstacle, cg_pair_s_many
 from beamcontact.contact.laws.penalty_native import penalty_obstacle, penalty_pair_s
 
@@ -48,7 +48,7 @@ _REACH_MARGIN = 1.0 + 1e-12
 CHUNK = 8
 
 
-@njit
+@njit_inline
 def pair_reach(law, R12, cutoff):
     """The centre-line distance at and beyond which a pair contributes nothing: the
     cutoff of eq. (9), R1 + R2 for the penalty (eq. 3 acts on overlaps only)."""
@@ -77,7 +77,7 @@ def _points(R, X, out):
         out[i, 1] = y
 
 
-@njit
+@njit_inline
 def point_box_gap2(px, py, lo_x, lo_y, hi_x, hi_y):
     """Squared distance from (px, py) to a box: a lower bound of the squared distance to
     every point in it, in floating point too (rounding is monotone)."""
@@ -86,7 +86,7 @@ def point_box_gap2(px, py, lo_x, lo_y, hi_x, hi_y):
     return dx * dx + dy * dy
 
 
-@njit
+@njit_inline
 def _add_diagonal_block(k, o, Ri, sxx, sxy, syy):
     """k[o + 2a + c, o + 2b + e] += Ri_a Ri_b S_ce, S = [[sxx, sxy], [sxy, syy]]."""
     n = Ri.shape[0]
@@ -102,7 +102,7 @@ def _add_diagonal_block(k, o, Ri, sxx, sxy, syy):
             k[o + 2 * a + 1, o + 2 * b + 1] += c * syy
 
 
-@njit
+@njit_inline
 def _add_coupling_row(k, o, Ri, R2, cols, h, count):
     """The coupling block of one point i of element 1: k[2a + c, o + 2b + e] -=
     Ri_a sum_j H_ij^ce R2_jb over its ``count`` interacting points j = cols[:count], whose
@@ -182,7 +182,7 @@ def pair_laws(law, s, count, R12, amplitude, m, q_reg, cutoff, f, f1, f2):
         f[c], f1[c], f2[c] = penalty_pair_s(s[c], R12, amplitude)
 
 
-@njit
+@njit_inline
 def _row_sums(Wi, js, r, phi, d1, d2, first, last, sums2, cols, h):
     """The pairs first..last-1 of one point of element 1 (:func:`_row_within_reach`)
     with their law values (phi, d1, d2): adds each pair's gradient and Hessian (gx, gy,
@@ -322,7 +322,7 @@ def block_into(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff, f, k, t
     return energy
 
 
-@njit
+@njit_inline
 def _add_second_element(f, k, o, R2, sums2, active2, tangent):
     """Element 2's gradient -sum_j R2_j g_j and (``tangent``) diagonal block
     sum_j R2_j R2_j^T H_j, from the per-point sums (gx, gy, hxx, hxy, hyy) over the pairs

@@ -65,7 +65,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._native import njit
+from beamcontact._native import njit, njit_inline
 
 
 class BorderedLayout(NamedTuple):
@@ -154,7 +154,7 @@ def zero(band, B, C, D):
     D[:] = 0.0
 
 
-@njit
+@njit_inline
 def add_block(band, B, C, D, kl, ku, dofs, k_local):
     """K[dofs[a], dofs[b]] += k_local[a, b] for the layout positions ``dofs`` (k,) and the
     local matrix ``k_local`` (k, k); repeated positions add up.
