@@ -243,6 +243,48 @@ def test_solve_equals_dense_lu(case):
     assert worst_rel < REL_TOL
 
 
+def _lu_every_column(D):
+    """Right-looking LU with partial pivoting that updates every column of every row
+    (dense_lu without its bound on the pivot row), on a copy; returns (LU, pivots)."""
+    D = D.copy()
+    m = D.shape[0]
+    piv = np.zeros(m, np.int64)
+    for k in range(m):
+        p = k + int(np.argmax(np.abs(D[k:, k])))  # the first of equal candidates
+        piv[k] = p
+        D[[k, p]] = D[[p, k]]
+        for i in range(k + 1, m):
+            mult = D[i, k] / D[k, k]
+            D[i, k] = mult
+            if mult != 0.0:
+                for c in range(k + 1, m):
+                    D[i, c] -= mult * D[k, c]
+    return D, piv
+
+
+def test_dense_lu_of_a_banded_block_skips_only_exact_zeros():
+    """A beam without contact is a banded border block D: dense_lu updates each row only
+    up to the last nonzero of the pivot row, and its factors are those of the update of
+    every column, bit for bit (supported rows and columns with their -0 entries
+    included)."""
+    rng = np.random.default_rng(11)
+    m, kl, ku = 40, 5, 5
+    D = np.zeros((m, m))
+    for i in range(m):
+        for j in range(max(0, i - kl), min(m, i + ku + 1)):
+            D[i, j] = rng.standard_normal()
+    free = np.ones(m)
+    free[[0, 1, m - 2]] = 0.0
+    D = D * free[:, None] * free[None, :]  # as apply_supports: -0 where x < 0
+    D[np.arange(m), np.arange(m)] += 1.0 - free
+    assert np.any(np.signbit(D) & (D == 0.0))  # -0 entries are there
+    ref, piv = _lu_every_column(D)
+    lu, ipiv = D.copy(), np.zeros(m, np.int64)
+    assert bn.dense_lu(lu, ipiv) == 0
+    assert np.array_equal(ipiv, piv) and np.any(ipiv != np.arange(m))
+    assert np.array_equal(lu, ref)
+
+
 def test_factor_once_solve_many():
     """The factors serve several right-hand sides, which stay unchanged."""
     case = (176, 9, 9, 60)

@@ -217,28 +217,40 @@ def apply_supports(band, B, C, D, kl, ku, free, r, coupled=True):
     its residual 0, so its Newton increment is 0). Same products in the same order, so
     the values are the dense ones exactly; the fill-in rows of the band are left alone.
     ``coupled`` False: B and C are zero (:func:`factor`) and stay as they are.
+
+    Only the rows and columns of the supported dofs are visited: every other entry is
+    x * 1 * 1, which is x exactly (the products are formed as above, row factor first,
+    and repeating one on an entry both in a supported row and column gives the same
+    zero). A beam without supports leaves its block untouched but for the diagonal.
     """
     n_b = band.shape[0]
     m = D.shape[0]
     kv = kl + ku
+    for s in range(n_b + m):
+        if free[s] == 1.0:
+            continue
+        if s < n_b:
+            for i in range(max(0, s - ku), min(n_b, s + kl + 1)):  # column s of A
+                band[s, kv + i - s] = band[s, kv + i - s] * free[i] * free[s]
+            for j in range(max(0, s - kl), min(n_b, s + ku + 1)):  # row s of A
+                band[j, kv + s - j] = band[j, kv + s - j] * free[s] * free[j]
+            if coupled:
+                for k in range(m):
+                    B[s, k] = B[s, k] * free[s] * free[n_b + k]
+                    C[k, s] = C[k, s] * free[n_b + k] * free[s]
+        else:
+            k = s - n_b
+            for q in range(m):
+                D[k, q] = D[k, q] * free[s] * free[n_b + q]
+                D[q, k] = D[q, k] * free[n_b + q] * free[s]
+            if coupled:
+                for i in range(n_b):
+                    B[i, k] = B[i, k] * free[i] * free[s]
+                    C[k, i] = C[k, i] * free[s] * free[i]
     for j in range(n_b):
-        fj = free[j]
-        for i in range(max(0, j - ku), min(n_b, j + kl + 1)):
-            band[j, kv + i - j] = band[j, kv + i - j] * free[i] * fj
-        band[j, kv] += 1.0 - fj
-    if coupled:
-        for i in range(n_b):
-            fi = free[i]
-            for k in range(m):
-                B[i, k] = B[i, k] * fi * free[n_b + k]
+        band[j, kv] += 1.0 - free[j]
     for k in range(m):
-        fk = free[n_b + k]
-        if coupled:
-            for j in range(n_b):
-                C[k, j] = C[k, j] * fk * free[j]
-        for q in range(m):
-            D[k, q] = D[k, q] * fk * free[n_b + q]
-        D[k, k] += 1.0 - fk
+        D[k, k] += 1.0 - free[n_b + k]
     for i in range(n_b + m):
         r[i] = r[i] * free[i]
 
@@ -442,12 +454,18 @@ def dense_lu(D, ipiv):
                 D[p, c] = t
         # 1-d slices taken outside the branch, as in band_lu: 2.4 times faster for m = 60
         pivot_row = D[k, k + 1:]
+        # the zeros at the end of the pivot row change no entry (x - mult 0 is x; only a
+        # -0 entry would have become +0), so a banded block (a beam in free flight) is
+        # updated within its band
+        width = m - k - 1
+        while width > 0 and pivot_row[width - 1] == 0.0:
+            width -= 1
         for i in range(k + 1, m):
             target = D[i, k + 1:]
             mult = D[i, k] / pivot
             D[i, k] = mult
             if mult != 0.0:
-                for c in range(m - k - 1):
+                for c in range(width):
                     target[c] -= mult * pivot_row[c]
     return 0
 
