@@ -545,18 +545,21 @@ def solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x, coupled=True):
         return
     y = x[n_b:]
     if coupled:
-        for k in range(m):
-            s = y[k]
-            for j in range(n_b):
-                s -= C[k, j] * x[j]
-            y[k] = s
+        _subtract_product(C, x[:n_b], y)
     dense_solve(D, ipiv_s, y)
     if coupled:
-        for i in range(n_b):
-            s = x[i]
-            for k in range(m):
-                s -= B[i, k] * y[k]
-            x[i] = s
+        _subtract_product(B, y, x[:n_b])
+
+
+@njit_inline
+def _subtract_product(M, v, out):
+    """out -= M v, each row's sum in column order (the two halves of the block
+    elimination in :func:`solve`)."""
+    for i in range(M.shape[0]):
+        s = out[i]
+        for k in range(M.shape[1]):
+            s -= M[i, k] * v[k]
+        out[i] = s
 
 
 @njit
