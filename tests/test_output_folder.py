@@ -153,12 +153,16 @@ import os, signal, sys, threading
 from beamcontact.cli import main
 from beamcontact.record import RunRecord
 
-rows, signum = RunRecord.rows, int(sys.argv[3])
-def send_at_step_20(self, steps, *args, **kwargs):
+rows, signum, at_step = RunRecord.rows, int(sys.argv[3]), int(sys.argv[4])
+def send_at_step(self, steps, *args, **kwargs):
     rows(self, steps, *args, **kwargs)
-    if 20 in [int(s) for s in steps]:  # as a scheduler would, from outside the main thread
-        threading.Thread(target=os.kill, args=(os.getpid(), signum)).start()
-RunRecord.rows = send_at_step_20
+    if at_step in [int(s) for s in steps]:
+        # as a scheduler would, from outside the main thread; joined, so that the signal
+        # has arrived before the run goes on (the compiled loop may hold the GIL)
+        sender = threading.Thread(target=os.kill, args=(os.getpid(), signum))
+        sender.start()
+        sender.join()
+RunRecord.rows = send_at_step
 sys.argv = ["beamcontact", "run", sys.argv[1], "--out", sys.argv[2], "-q"]
 main()
 """
@@ -175,7 +179,8 @@ def test_sigterm_and_sighup_stop_a_run_like_ctrl_c(tmp_path):
     for sig in (signal.SIGTERM, signal.SIGHUP):
         out = tmp_path / sig.name
         proc = subprocess.run([sys.executable, "-c", _SIGNALLED, str(case), str(out),
-                               str(int(sig))], capture_output=True, text=True, timeout=600)
+                               str(int(sig)), "20"], capture_output=True, text=True,
+                              timeout=600)
         assert proc.returncode == 128 + int(sig), proc.stderr
         _one_line(proc, f"stopped by {sig.name}", str(out))
         summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
@@ -224,9 +229,11 @@ def test_a_restarted_run_counts_the_whole_run(tmp_path):
     whole, parts = tmp_path / "whole", tmp_path / "parts"
     assert _cli("run", case, "--out", whole, "-q").returncode == 0
     stopped = subprocess.run(
-        [sys.executable, "-c", _SIGNALLED.replace("step == 20", "step == 900"), str(case),
-         str(parts), str(int(signal.SIGTERM))], capture_output=True, text=True, timeout=600)
+        [sys.executable, "-c", _SIGNALLED, str(case), str(parts), str(int(signal.SIGTERM)),
+         "900"], capture_output=True, text=True, timeout=600)
     assert stopped.returncode == 143, stopped.stderr
+    first = json.loads((parts / "summary.json").read_text(encoding="utf-8"))["impacts"]
+    assert len(first) == 1 and first[0]["end"] is None, "stopped in the first impact"
     assert _cli("run", case, "--out", parts, "-q", "--restart").returncode == 0
     assert (whole / "history.csv").read_bytes() == (parts / "history.csv").read_bytes()
     a, b = (json.loads((d / "summary.json").read_text(encoding="utf-8"))
