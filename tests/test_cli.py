@@ -223,7 +223,28 @@ def test_compilation_cache_location_and_identical_results(tmp_path, monkeypatch,
         assert any((tmp_path / "cache" / "numba").rglob("*.nbi"))
         assert any((tmp_path / "cache" / "numba").glob("*/loop-*.ready"))
         assert not any((tmp_path / "cache" / "numba").glob("*/loop-*.lock"))
+        # the helper's kernel calls and the run's help pass the loop's own types: the
+        # loop compiled no second version of any of them (nor did the start, of the
+        # solver's kernels)
+        for name in ("native_step.contact_blocks", "bordered_native.newton_update",
+                     "native_step._residual_tangent", "native_step._residual",
+                     "native_step.attempt", "step_set_native.step_set_at",
+                     "step_set_native.after_step", "bordered_native.factor_solve",
+                     "bordered_native.apply_supports"):
+            assert _stored_versions(tmp_path / "cache" / "numba", name) == 1, name
     assert all(run == runs[0] for run in runs)
+
+
+def _stored_versions(folder: Path, name: str) -> int:
+    """The number of compiled versions (signatures) of the kernel ``name`` ("module.func")
+    in Numba's cache index under ``folder``."""
+    import pickle
+
+    (index,) = folder.rglob(f"{name}-*.nbi")
+    with open(index, "rb") as f:
+        pickle.load(f)  # Numba's version
+        _, overloads = pickle.loads(f.read())
+    return len(overloads)
 
 
 # --- mechanisms: static beams that nothing holds -------------------------------------------

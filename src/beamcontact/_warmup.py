@@ -1,14 +1,18 @@
 """Compiling the native time loop in a helper process while a run with empty caches
 compiles the rest (docs/engines.md, "Compilation").
 
-With empty caches the native kernels take about 90 s to compile on one core, 40 s of it
-the compiled time loop (:func:`beamcontact.dynamics.native_loop.run`), which a run needs
-only after its start (the initial acceleration, the first energies and the contact set
-at t = 0, themselves about 50 s). The loop's signature is the same for every model, so a
-helper process compiles it on a tiny model of its own, into the shared cache, while the
-run compiles its start on the other core; the run then waits for the helper and loads the
-loop from the cache. One helper per cache: the first run that finds the cache without the
-loop takes a lock file and starts it, the others wait for it too.
+With empty caches the native kernels take about two minutes to compile on one core. The
+compiled time loop (:func:`beamcontact.dynamics.native_loop.run`) and its kernels are a
+run's largest part, and a run needs them only after its start (the contact set at t = 0,
+the initial acceleration, the first energies and checks). The loop's signature is the
+same for every model, so a helper process compiles it on a tiny model of its own, into
+the shared cache, while the run compiles its start on the other core; the run then
+waits for the helper and loads the loop from the cache. The two share kernels: the
+helper compiles the loop's kernels one by one first (:func:`_kernel_calls`), in an order
+that goes ahead of the start, and the run, its start done, compiles the helper's last
+ones (:func:`help_while_waiting`), so that each loads from the cache what the other has
+compiled. One helper per cache: the first run that finds the cache without the loop
+takes a lock file and starts it, the others wait for it too.
 
 Files in the kernel cache folder (``_native._CACHE_DIR``), one pair per install:
 ``loop-<key>.ready`` once the loop is in the cache, ``loop-<key>.lock`` (the helper's
@@ -150,8 +154,82 @@ def _compile_loop() -> None:
                      LoadState(theta=np.zeros(tangent.shape[0]), tangent=tangent))
     account = EnergyAccount(0.0, 0.0, dict.fromkeys(DIAGNOSTICS, 0.0))
     limits = Limits.of(StepControl(1e-3, 1e-9), 1e-3, p.length, p.contact.max_penetration)
+    for call in _kernel_calls(engine, state):
+        call()
     engine.advance(state, new_state(0.0, 1e-3, account), limits, lambda *_: None)
 
+
+def _kernel_calls(engine, state) -> list:
+    """The loop's kernels, each as a call on the engine's model with the types the loop
+    passes, in the helper's order (:func:`_compile_loop`): the contact blocks and the
+    solver (which the run's start needs once it has its contact set), what the start
+    needs late or never (the HHT residual, the attempt), then the contact set at the
+    predictor and the checks after a step, which the start compiles the first parts of.
+    Compiling the loop alone would compile its kernels in the order of its body, the
+    order in which the start compiles the same kernels beside it, so that both
+    processes would compile the same kernel at the same time; in this order each loads
+    from the cache more of what the other has compiled."""
+    import numpy as np
+
+    from beamcontact.assembly import native_model as nmod
+    from beamcontact.contact import step_set_native as ssn
+    from beamcontact.dynamics import native_step as ns
+    from beamcontact.dynamics.report import COUNTS, VALUES
+    from beamcontact.solvers import bordered_native as bordered
+
+    nm, sysm = engine.nm, engine.system
+    ne, law = ns._no_contact_elements() if engine._contact is None else (
+        engine._contact.ne, engine._contact.law)
+    lay, ar = sysm.layout, sysm.arrays
+    s, n = state, nm.n_dof
+    frozen = ssn.frozen_blocks(ne, law, ns.NO_CONTACT[2], ns.NO_CONTACT[3])
+    x = nmod._positions(nm.x_ref, s.u)
+    v = s.v.reshape(-1, 2)
+    r, r_pot, r_layout, du = (np.zeros(n) for _ in range(4))
+    blocks = np.zeros((nm.block_dofs.shape[0], nm.block_dofs.shape[1],
+                       nm.block_dofs.shape[1]))
+    system = (sysm.position, sysm.block_positions, sysm.free, ar.band.copy(), ar.B.copy(),
+              ar.C.copy(), ar.D.copy(), lay.kl, lay.ku)
+    band, B, C, D = system[3:7]
+    history = (s.u, s.u, s.v, s.a, np.zeros(4), 0.0, s.f_pot, s.load_state.theta,
+               s.load_state.tangent)
+    out = [np.empty(n) for _ in range(4)] + [
+        np.empty_like(s.load_state.theta), np.empty_like(s.load_state.tangent),
+        np.empty(len(VALUES)), np.empty(len(COUNTS), np.int64)]
+    return [
+        lambda: ns.contact_blocks(x, *frozen, 1.0, sysm.position, band, B, C, D, lay.kl,
+                                  lay.ku, r_pot, r),
+        lambda: bordered.newton_update(band, B, C, D, lay.kl, lay.ku, ar.ipiv.copy(),
+                                       ar.ipiv_s.copy(), sysm.position, r_layout, du,
+                                       s.u.copy(), False),
+        lambda: ns._residual_tangent(nm, frozen, *history, *system, r, r_pot, r_layout,
+                                     blocks),
+        lambda: ns._residual(nm, frozen, *history, r, r_pot, blocks),
+        lambda: ns.attempt(nm, frozen, sysm.position, sysm.block_positions, sysm.free, band,
+                           B, C, D, ar.ipiv.copy(), ar.ipiv_s.copy(), lay.kl, lay.ku, s.u,
+                           s.v, s.a, s.f_pot, s.load_state.theta, s.load_state.tangent, 1e-3,
+                           0.0, 1e-8, 1e-9, 1e-3, 1.0, 10, 4, np.nan, np.nan, *out),
+        lambda: ssn.step_set_at(x, x.copy(), v, v.copy(), 1e-3, 0.0, ne, law),
+        lambda: ssn.after_step(x, x.copy(), x.copy(), 0.0, ne, law, frozen[2]),
+    ]
+
+
+# how many of the helper's last kernel calls the run itself makes, last first, once its
+# start is done and while it would otherwise wait for the helper
+RUN_HELPS = 2
+
+
+def help_while_waiting(engine, state) -> None:
+    """Before the loop's first call of a run whose helper is still compiling: the last
+    RUN_HELPS of the helper's kernel calls (:func:`_kernel_calls`), last first, so that
+    the helper loads them from the cache when it gets there."""
+    files = _files()
+    if files is None or files[0].exists() or (_helper is None and not files[1].exists()):
+        return
+    for call in reversed(_kernel_calls(engine, state)[-RUN_HELPS:]):
+        if files[0].exists():
+            return
+        call()
 
 if __name__ == "__main__":
     try:

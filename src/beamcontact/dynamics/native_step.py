@@ -273,9 +273,13 @@ def initial_acceleration(nm, contact, u, v, theta, tangent, position, positions,
     r_layout = np.empty(n)
     for i in range(n):
         r_layout[position[i]] = -(f0[i] + f_pot[i])
-    bordered.apply_supports(band, B, C, D, kl, ku, free_layout, r_layout)
+    # B and C are zero (no contact tangent is assembled here), so either value of the
+    # flag gives the same numbers; the attempt's flag, a variable, lets the solver's
+    # kernels be the attempt's (a constant would compile them a second time)
+    coupled = contact[2].shape[0] > 0
+    bordered.apply_supports(band, B, C, D, kl, ku, free_layout, r_layout, coupled)
     a_layout = np.empty(n)
-    bordered.factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, a_layout)
+    bordered.factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, a_layout, coupled)
     for i in range(n):
         a[i] = a_layout[position[i]]
 
@@ -571,6 +575,7 @@ class NativeEngine:
         from beamcontact.dynamics import native_loop
 
         waited = time.perf_counter()
+        _warmup.help_while_waiting(self, state)
         _warmup.wait()  # a helper compiling the loop into an empty cache
         waited = time.perf_counter() - waited
         s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
