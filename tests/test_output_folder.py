@@ -175,7 +175,13 @@ def test_sigterm_and_sighup_stop_a_run_like_ctrl_c(tmp_path):
     import json
     import signal
 
-    case = _case(tmp_path, 0.2)
+    # long enough that the compiled loop's call holding step 20 (about 0.1 s of steps,
+    # however fast the machine) ends well before t_end
+    raw = tomllib.loads(VIBRATION.read_text(encoding="utf-8"))
+    raw["analysis"]["t_end"] = 10.0
+    raw["output"]["vtk_interval"] = 0.5
+    case = tmp_path / "case.toml"
+    case.write_text(tomli_w.dumps(raw), encoding="utf-8")
     for sig in (signal.SIGTERM, signal.SIGHUP):
         out = tmp_path / sig.name
         proc = subprocess.run([sys.executable, "-c", _SIGNALLED, str(case), str(out),
@@ -185,11 +191,11 @@ def test_sigterm_and_sighup_stop_a_run_like_ctrl_c(tmp_path):
         _one_line(proc, f"stopped by {sig.name}", str(out))
         summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
         assert summary["status"] == "interrupted" and summary["signal"] == sig.name
-        assert 20 <= summary["steps"] < 200
+        assert 20 <= summary["steps"] < 5000
         rest = _cli("run", case, "--out", out, "-q", "--restart")
         assert rest.returncode == 0, rest.stderr
         done = json.loads((out / "summary.json").read_text(encoding="utf-8"))
-        assert done["status"] == "completed" and done["t_final"] == 0.2
+        assert done["status"] == "completed" and done["t_final"] == 10.0
 
 
 def test_a_dense_tangent_larger_than_the_memory_is_refused_before_it_is_made(tmp_path,
@@ -214,8 +220,9 @@ def test_a_dense_tangent_larger_than_the_memory_is_refused_before_it_is_made(tmp
 
 
 def test_a_restarted_run_counts_the_whole_run(tmp_path):
-    """Stopped by SIGTERM in the first impact and continued with --restart, the bundled
-    IPIP drop ends with the history of an uninterrupted run byte for byte, and its
+    """Stopped by SIGTERM early and continued with --restart through the first impact,
+    the bundled IPIP drop ends with the history of an uninterrupted run byte for byte
+    (a restart inside a contact episode: tests/test_free_fall.py), and its
     summary counts the whole run as that one's does: steps, Newton iterations (of every
     attempt), cut-backs and rejections by kind, and the message's step count."""
     import json
@@ -230,10 +237,13 @@ def test_a_restarted_run_counts_the_whole_run(tmp_path):
     assert _cli("run", case, "--out", whole, "-q").returncode == 0
     stopped = subprocess.run(
         [sys.executable, "-c", _SIGNALLED, str(case), str(parts), str(int(signal.SIGTERM)),
-         "900"], capture_output=True, text=True, timeout=600)
+         "20"], capture_output=True, text=True, timeout=600)
     assert stopped.returncode == 143, stopped.stderr
-    first = json.loads((parts / "summary.json").read_text(encoding="utf-8"))["impacts"]
-    assert len(first) == 1 and first[0]["end"] is None, "stopped in the first impact"
+    # the signal comes with step 20, and the run stops once the compiled loop's call
+    # that made it has handed all of its steps over: how many depends on the machine
+    # (a call lasts a fixed time), so an early step, far from the end
+    stopped_at = json.loads((parts / "summary.json").read_text(encoding="utf-8"))
+    assert stopped_at["status"] == "interrupted" and stopped_at["steps"] >= 20
     assert _cli("run", case, "--out", parts, "-q", "--restart").returncode == 0
     assert (whole / "history.csv").read_bytes() == (parts / "history.csv").read_bytes()
     a, b = (json.loads((d / "summary.json").read_text(encoding="utf-8"))

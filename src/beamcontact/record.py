@@ -186,7 +186,8 @@ class RunRecord:
         import h5py
 
         old = read_history(out_dir / "history.csv")
-        self._rows = [np.array([old[c][k] for c in self.columns]) for k in range(len(old["step"]))]
+        self._rows = [np.array([[old[c][k] for c in self.columns]
+                                for k in range(len(old["step"]))]).reshape(-1, len(self.columns))]
         with h5py.File(out_dir / "results.h5", "r") as f:
             params, u = f["states/parameter"][:], f["states/u"]
             picks = self.snapshot_indices(params)
@@ -207,20 +208,25 @@ class RunRecord:
             cutbacks: int, **extra) -> None:
         """Append one history row (``values`` holds the diagnostics' columns, ``extra`` the
         step "dt" in dynamics; a missing one is a KeyError: the header is fixed)."""
-        self.rows([step], [parameter], np.asarray(u)[None], [values], [iterations],
-                  [cutbacks], **{k: [v] for k, v in extra.items()})
+        self.rows([step], [parameter], np.asarray(u)[None], {k: [v] for k, v in values.items()},
+                  [iterations], [cutbacks], **{k: [v] for k, v in extra.items()})
 
-    def rows(self, steps, parameters, u, values: list[dict], iterations, cutbacks,
+    def rows(self, steps, parameters, u, values: dict, iterations, cutbacks,
              **extra) -> None:
-        """Append k history rows at once (:meth:`row` of each; u (k, n_dof), ``extra``
-        sequences of k), written to history.csv in one piece."""
+        """Append k history rows at once (:meth:`row` of each; u (k, n_dof), ``values``
+        the diagnostics' columns and ``extra`` sequences of k), written to history.csv
+        in one piece."""
         points = self.points.table(self.x_ref + np.asarray(u).reshape(len(steps), -1, 2))
-        # Python numbers only: history.csv writes them by repr
-        rows = [[int(step), float(parameter), *p, *[float(v[c]) for c in self._value_columns],
-                 int(n), int(c), *[float(extra[e][k]) for e in self._extra_columns]]
-                for k, (step, parameter, p, v, n, c) in enumerate(
-                    zip(steps, parameters, points, values, iterations, cutbacks, strict=True))]
-        self._rows += [np.array(row, dtype=float) for row in rows]
+        # Python numbers only (tolist gives them): history.csv writes them by repr
+        value_columns = [np.asarray(values[c], dtype=float).tolist()
+                         for c in self._value_columns]
+        extra_columns = [np.asarray(extra[e], dtype=float).tolist()
+                         for e in self._extra_columns]
+        rows = [[int(step), float(parameter), *p, *(col[k] for col in value_columns),
+                 int(n), int(cut), *(col[k] for col in extra_columns)]
+                for k, (step, parameter, p, n, cut) in enumerate(
+                    zip(steps, parameters, points, iterations, cutbacks, strict=True))]
+        self._rows.append(np.array(rows, dtype=float).reshape(len(rows), len(self.columns)))
         if self._writes():
             with writing(self.out_dir / "history.csv", self):
                 self.files.history.write_many(rows)
@@ -260,7 +266,7 @@ class RunRecord:
 
     def history(self) -> dict[str, np.ndarray]:
         """The history as columns."""
-        table = np.array(self._rows).reshape(len(self._rows), len(self.columns))
+        table = np.concatenate([np.empty((0, len(self.columns))), *self._rows])
         return {c: table[:, k] for k, c in enumerate(self.columns)}
 
     def close(self) -> None:

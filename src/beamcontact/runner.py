@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 import tomllib
 from contextlib import suppress
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +24,7 @@ from beamcontact.contact.laws import CoarseGrained
 from beamcontact.contact.overlap import describe, initial_overlaps, obstacle_overlaps
 from beamcontact.contact.resolution import contact_resolution, resolution_warning
 from beamcontact.dynamics.control import KINDS, EnergyAccount, total_energy
-from beamcontact.dynamics.driver import DynamicStep, solve_dynamic
+from beamcontact.dynamics.driver import StepBatch, solve_dynamic
 from beamcontact.dynamics.hht import DynState
 from beamcontact.dynamics.report import DIAGNOSTICS
 from beamcontact.io.case import Case, CaseError, ignored_keys, parse_case
@@ -332,15 +332,18 @@ def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, d
 _AGAIN = "run the case again without --restart (with --overwrite)"
 
 
+# the energies of a saved state as results.h5 keeps them for a restart
+_ACCOUNT = (*DIAGNOSTICS, "E_dissipated", "E_set_change")
+
+
 def _account_record(diag: dict) -> np.ndarray:
     """The energies of a saved state as results.h5 keeps them for a restart."""
-    return np.array([diag[k] for k in (*DIAGNOSTICS, "E_dissipated", "E_set_change")])
+    return np.array([diag[k] for k in _ACCOUNT])
 
 
 def _account_from_record(record: np.ndarray) -> EnergyAccount:
     """Inverse of :func:`_account_record`."""
-    values = dict(zip((*DIAGNOSTICS, "E_dissipated", "E_set_change"), record.tolist(),
-                      strict=True))
+    values = dict(zip(_ACCOUNT, record.tolist(), strict=True))
     return EnergyAccount(values.pop("E_dissipated"), values.pop("E_set_change"), values)
 
 
@@ -389,27 +392,20 @@ class _Start:
     rec: RunRecord
 
 
-def _save(rec: RunRecord, steps: list[DynamicStep], iterations_total: list[int],
-          rejections_total: list[np.ndarray]) -> None:
+def _save(rec: RunRecord, batch: StepBatch, cutbacks: np.ndarray,
+          iterations_total: np.ndarray, rejections_total: np.ndarray) -> None:
     """Accepted steps into history.csv and results.h5 (with what a restart needs: the
-    state, the step to try next, the energy account and the run's counters so far), all
-    at once."""
-    def stacked(get) -> np.ndarray:
-        return np.stack([np.asarray(get(s)) for s in steps])
-
-    number, t, dt = stacked(lambda s: s.step), stacked(lambda s: s.t), stacked(lambda s: s.dt)
-    u = stacked(lambda s: s.state.u)
-    rec.rows(number, t, u, [s.diagnostics for s in steps], [s.iterations for s in steps],
-             [s.cutbacks for s in steps], dt=dt)
-    rec.states(number, t, u, v=stacked(lambda s: s.state.v), a=stacked(lambda s: s.state.a),
-               f_pot=stacked(lambda s: s.state.f_pot),
-               load_theta=stacked(lambda s: s.state.load_state.theta),
-               load_tangent=stacked(lambda s: s.state.load_state.tangent), dt=dt,
-               dt_next=stacked(lambda s: s.dt_next),
-               iterations_total=np.asarray(iterations_total),
-               cutbacks_total=stacked(lambda s: s.cutbacks),
-               rejections_total=np.stack(rejections_total),
-               energy_account=stacked(lambda s: _account_record(s.diagnostics)))
+    state, the step to try next, the energy account and the run's counters so far:
+    ``cutbacks``, ``iterations_total`` (k,) and ``rejections_total`` (k, len(KINDS))),
+    all at once."""
+    u, v, a, f_pot, theta, tangent = batch.state_arrays()
+    diag = batch.diagnostics()
+    number, t, dt = batch.step, batch.t, batch.dt
+    rec.rows(number, t, u, diag, batch.iterations, cutbacks, dt=dt)
+    rec.states(number, t, u, v=v, a=a, f_pot=f_pot, load_theta=theta, load_tangent=tangent,
+               dt=dt, dt_next=batch.dt_next, iterations_total=iterations_total,
+               cutbacks_total=cutbacks, rejections_total=rejections_total,
+               energy_account=np.column_stack([diag[k] for k in _ACCOUNT]))
 
 
 def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_Start, object]:
@@ -442,8 +438,8 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
     diag0 = begin.engine.energies(state, first)
     diag0 = {**diag0, "E_total": total_energy(diag0), "error": 0.0, "E_dissipated": 0.0,
              "E_set_change": 0.0}
-    _save(rec, [DynamicStep(0, 0.0, 0.0, an.dt, state, 0, 0, diag0)], [0],
-          [np.zeros(len(KINDS))])
+    _save(rec, StepBatch.initial(state, diag0, an.dt), np.zeros(1, np.int64),
+          np.zeros(1, np.int64), np.zeros((1, len(KINDS))))
     rec.snapshot(0.0, state.u)
     return _Start(state, 0, an.dt, 0, 0, np.zeros(len(KINDS)),
                   _account_from_record(_account_record(diag0)), rec), begin
@@ -460,20 +456,21 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
     tally = _Tally(steps=start.step0, iterations=start.iterations, cutbacks=start.cutbacks,
                    reached=float(start.state.t), rejected=start.rejected)
 
-    def on_steps(steps: list[DynamicStep]) -> None:
-        steps = [replace(s, cutbacks=start.cutbacks + s.cutbacks) for s in steps]
-        rejected = [start.rejected + np.asarray(s.rejected or np.zeros(len(KINDS)))
-                    for s in steps]
-        iterations = [start.iterations + s.iterations_total for s in steps]
-        s = steps[-1]
-        tally.accept(s.step, s.t, iterations[-1] - tally.iterations, s.cutbacks, rejected[-1])
-        _save(rec, steps, iterations, rejected)
-        for s in steps:
-            if s.t >= next_snapshot[0] - 1e-9 * interval or s.t >= an.t_end - 1e-12:
-                rec.snapshot(s.t, s.state.u)
-                next_snapshot[0] = np.floor(s.t / interval + 1e-9) * interval + interval
+    def on_steps(batch: StepBatch) -> None:
+        cutbacks = start.cutbacks + batch.cutbacks
+        rejected = start.rejected + batch.rejected
+        iterations = start.iterations + batch.iterations_total
+        step, t = int(batch.step[-1]), float(batch.t[-1])
+        tally.accept(step, t, int(iterations[-1]) - tally.iterations, int(cutbacks[-1]),
+                     rejected[-1])
+        _save(rec, batch, cutbacks, iterations, rejected)
+        for j, tj in enumerate(batch.t.tolist()):
+            if tj >= next_snapshot[0] - 1e-9 * interval or tj >= an.t_end - 1e-12:
+                rec.snapshot(tj, batch.states[j].u)
+                next_snapshot[0] = np.floor(tj / interval + 1e-9) * interval + interval
         if progress is not None:
-            progress(ProgressInfo(s.t / an.t_end, "t", s.t, s.step, s.dt, s.iterations))
+            progress(ProgressInfo(t / an.t_end, "t", t, step, float(batch.dt[-1]),
+                                  int(batch.iterations[-1])))
 
     try:
         result = solve_dynamic(begin.engine, start.state, an.t_end, prepared.length,

@@ -45,7 +45,7 @@ attempts at one step) stops the run with a message; every accepted step has gone
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -81,6 +81,7 @@ from beamcontact.dynamics.report import (
     C_LOAD,
     C_LOAD_AFTER,
     CONVERGED,
+    COUNTS,
     DIAG0,
     DIAGNOSTICS,
     V_ERROR,
@@ -88,6 +89,7 @@ from beamcontact.dynamics.report import (
     V_H,
     V_RESIDUAL,
     V_RESIDUAL0,
+    VALUES,
     Attempt,
     Overflow,
 )
@@ -98,9 +100,10 @@ if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
 
 # what a loop hands over for its accepted steps, in order and as many at once as it has
 # (one per attempt in the host loop, one call's worth in a compiled loop): the states
-# after them, their reports (values (k, len(VALUES)), counts (k, len(COUNTS))) and the
-# controller's states right after each was accepted (k, len(ctl))
-Emit = Callable[[list, np.ndarray, np.ndarray, np.ndarray], None]
+# after them (a sequence of the engine's states: a list, or a compiled loop's arrays as
+# a sequence, with ``arrays()``), their reports (values (k, len(VALUES)), counts (k,
+# len(COUNTS))) and the controller's states right after each was accepted (k, len(ctl))
+Emit = Callable[[Sequence, np.ndarray, np.ndarray, np.ndarray], None]
 
 
 class Engine(Protocol):
@@ -155,6 +158,98 @@ class DynamicStep:
 
 
 @dataclass(frozen=True)
+class StepBatch:
+    """Accepted steps as a loop hands them over (:data:`Emit`), in order, with the number
+    of the steps before this solve (``step0``): what a writer takes many at a time, as
+    arrays (the columns of :class:`DynamicStep`), and :meth:`steps` one by one."""
+
+    states: Sequence
+    values: np.ndarray
+    counts: np.ndarray
+    after: np.ndarray
+    step0: int = 0
+
+    def __len__(self) -> int:
+        return self.after.shape[0]
+
+    @property
+    def step(self) -> np.ndarray:
+        return self.step0 + self.after[:, STEPS].astype(np.int64)
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.after[:, T]
+
+    @property
+    def dt(self) -> np.ndarray:
+        return self.values[:, V_H]
+
+    @property
+    def dt_next(self) -> np.ndarray:
+        return self.after[:, H_TRY]
+
+    @property
+    def iterations(self) -> np.ndarray:
+        return self.counts[:, C_ITERATIONS]
+
+    @property
+    def cutbacks(self) -> np.ndarray:
+        return self.after[:, CUTBACKS].astype(np.int64)
+
+    @property
+    def iterations_total(self) -> np.ndarray:
+        return self.after[:, ITERATIONS].astype(np.int64)
+
+    @property
+    def rejected(self) -> np.ndarray:
+        """(k, len(KINDS)) the rejected attempts by kind since step0."""
+        return self.after[:, REJECTED:REJECTED + len(KINDS)]
+
+    def diagnostics(self) -> dict[str, np.ndarray]:
+        """:attr:`DynamicStep.diagnostics` of every step, as columns (the same numbers)."""
+        diag = {name: self.values[:, DIAG0 + i] for i, name in enumerate(DIAGNOSTICS)}
+        return {**diag, "min_gap": self.values[:, V_GAP], "E_total": ctl_.total_energy(diag),
+                "error": self.values[:, V_ERROR], "E_dissipated": self.after[:, E_DISSIPATED],
+                "E_set_change": self.after[:, E_SET_CHANGE]}
+
+    def state_arrays(self) -> tuple[np.ndarray, ...]:
+        """(u, v, a, f_pot, load theta, load tangent) of the states, each (k, ...)."""
+        if hasattr(self.states, "arrays"):
+            return self.states.arrays()
+
+        def stacked(get) -> np.ndarray:
+            return np.stack([np.asarray(get(s)) for s in self.states])
+
+        return (stacked(lambda s: s.u), stacked(lambda s: s.v), stacked(lambda s: s.a),
+                stacked(lambda s: s.f_pot), stacked(lambda s: s.load_state.theta),
+                stacked(lambda s: s.load_state.tangent))
+
+    @classmethod
+    def initial(cls, state, diagnostics: dict, dt_next: float) -> StepBatch:
+        """The row of a run's initial state: step 0 at t = 0 with its ``diagnostics`` (the
+        engine's :meth:`Engine.energies`), nothing dissipated, ``dt_next`` to try first."""
+        values = np.zeros((1, len(VALUES)))
+        for i, name in enumerate(DIAGNOSTICS):
+            values[0, DIAG0 + i] = diagnostics[name]
+        values[0, V_GAP] = diagnostics["min_gap"]
+        after = np.zeros((1, ctl_.CONTROL_SIZE))
+        after[0, H_TRY] = dt_next
+        return cls([state], values, np.zeros((1, len(COUNTS)), np.int64), after)
+
+    def steps(self) -> list[DynamicStep]:
+        """The steps one by one (Python numbers but the states)."""
+        columns = {k: col.tolist() for k, col in self.diagnostics().items()}
+        step, t, dt, dt_next = (x.tolist() for x in (self.step, self.t, self.dt,
+                                                      self.dt_next))
+        iterations, cutbacks = self.iterations.tolist(), self.cutbacks.tolist()
+        totals, rejected = self.iterations_total.tolist(), self.rejected.astype(int).tolist()
+        return [DynamicStep(step[j], t[j], dt[j], dt_next[j], state, iterations[j],
+                            cutbacks[j], {k: col[j] for k, col in columns.items()},
+                            totals[j], tuple(rejected[j]))
+                for j, state in enumerate(self.states)]
+
+
+@dataclass(frozen=True)
 class DynamicResult:
     """Outcome of a dynamic analysis; ``state`` and ``dt_next`` allow a restart;
     ``rejections`` counts the rejected attempts by kind (newton, missing_block,
@@ -195,8 +290,8 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
             momentum, min_gap, the local error ``error`` [m] and the cumulative
             ``E_dissipated`` and ``E_set_change``.
         on_steps: called with the same steps as many at once as the loop makes them
-            (a compiled loop's call), in order, before ``on_step`` sees them: for a
-            writer that takes many rows at a time.
+            (a compiled loop's call), in order, before ``on_step`` sees them, as a
+            :class:`StepBatch`: for a writer that takes many rows at a time.
         capacity: initial length of the contact candidate list, or both capacities of
             the search (:class:`SearchCapacity`); they grow on overflow.
         account: the energy account of the state (a restart); default zero sums and the
@@ -210,15 +305,13 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
     ctl = new_state(engine.time(state), control.dt if dt_start is None else dt_start,
                     _initial_account(engine, state, first, account))
 
-    def emit(states: list, values: np.ndarray, counts: np.ndarray, after: np.ndarray) -> None:
-        if on_step is None and on_steps is None:
-            return
-        steps = [accepted_step(*row, step0) for row in zip(states, values, counts, after,
-                                                            strict=True)]
+    def emit(states: Sequence, values: np.ndarray, counts: np.ndarray,
+             after: np.ndarray) -> None:
+        batch = StepBatch(states, values, counts, after, step0)
         if on_steps is not None:
-            on_steps(steps)
+            on_steps(batch)
         if on_step is not None:
-            for s in steps:
+            for s in batch.steps():
                 on_step(s)
 
     if getattr(engine, "runs_loop", False):
@@ -231,22 +324,6 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
     return DynamicResult(status, message, int(ctl[STEPS]), int(ctl[ITERATIONS]),
                          int(ctl[CUTBACKS]), float(ctl[T]), state, float(ctl[H_TRY]),
                          time.perf_counter() - start, first_s or 0.0, ctl_.rejections(ctl))
-
-
-def accepted_step(state, values: np.ndarray, counts: np.ndarray, after: np.ndarray,
-                  step0: int = 0) -> DynamicStep:
-    """The :class:`DynamicStep` of an accepted attempt (``after``: the controller's state
-    right after it was accepted; ``step0`` the steps before this solve)."""
-    diag = dict(zip(DIAGNOSTICS, values[DIAG0:DIAG0 + len(DIAGNOSTICS)].tolist(), strict=True))
-    return DynamicStep(step0 + int(after[STEPS]), float(after[T]), float(values[V_H]),
-                       float(after[H_TRY]), state, int(counts[C_ITERATIONS]),
-                       int(after[CUTBACKS]),
-                       {**diag, "min_gap": float(values[V_GAP]),
-                        "E_total": ctl_.total_energy(diag), "error": float(values[V_ERROR]),
-                        "E_dissipated": float(after[E_DISSIPATED]),
-                        "E_set_change": float(after[E_SET_CHANGE])},
-                       int(after[ITERATIONS]),
-                       tuple(int(n) for n in after[REJECTED:REJECTED + len(KINDS)]))
 
 
 def _initial_account(engine: Engine, state, capacity: SearchCapacity | None,

@@ -365,6 +365,35 @@ def _predictor(x_ref, u, v, a, h, motion_factor):
 
 
 @dataclass(frozen=True)
+class StateRows:
+    """The states after k accepted steps as the compiled loop writes them, as arrays of
+    k rows (times t, then u, v, a, f_pot (k, n_dof) and the load states' theta and
+    tangent), and as a sequence of :class:`DynState` (made only when asked for)."""
+
+    t: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    f_pot: np.ndarray
+    theta: np.ndarray
+    tangent: np.ndarray
+
+    def __len__(self) -> int:
+        return self.t.shape[0]
+
+    def __getitem__(self, j: int) -> DynState:
+        return DynState(float(self.t[j]), self.u[j], self.v[j], self.a[j], self.f_pot[j],
+                        LoadState(theta=self.theta[j], tangent=self.tangent[j]))
+
+    def __iter__(self):
+        return (self[j] for j in range(len(self)))
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """(u, v, a, f_pot, theta, tangent), each (k, ...)."""
+        return self.u, self.v, self.a, self.f_pot, self.theta, self.tangent
+
+
+@dataclass(frozen=True)
 class _Chosen:
     """The contact set of one attempt: the frozen set as :func:`attempt` takes it, the
     step after the conservative advancement, and what the checks after the step need."""
@@ -615,10 +644,8 @@ class NativeEngine:
             finally:
                 k = int(made[0])
                 if k:
-                    emit([DynState(float(after[T]), *(x[j] for x in out[:4]),
-                                   LoadState(theta=out[4][j], tangent=out[5][j]))
-                          for j, after in enumerate(out[8][:k])],
-                         out[6][:k], out[7][:k], out[8][:k])
+                    emit(StateRows(out[8][:k, T], *(x[:k] for x in out[:6])), out[6][:k],
+                         out[7][:k], out[8][:k])
             seconds = time.perf_counter() - t0
             if first_s is None:
                 first_s = waited + seconds  # the compilation of the loop, wherever
