@@ -188,9 +188,9 @@ def _kernel_calls(engine, state) -> list:
     r, r_pot, r_layout, du = (np.zeros(n) for _ in range(4))
     blocks = np.zeros((nm.block_dofs.shape[0], nm.block_dofs.shape[1],
                        nm.block_dofs.shape[1]))
-    system = (sysm.position, sysm.block_positions, sysm.free, ar.band.copy(), ar.B.copy(),
-              ar.C.copy(), ar.D.copy(), lay.kl, lay.ku)
-    band, B, C, D = system[3:7]
+    # the engine's bordered arrays are scratch: every assembly zeroes them
+    band, B, C, D = ar.band, ar.B, ar.C, ar.D
+    system = (sysm.position, sysm.block_positions, sysm.free, band, B, C, D, lay.kl, lay.ku)
     history = (s.u, s.u, s.v, s.a, np.zeros(4), 0.0, s.f_pot, s.load_state.theta,
                s.load_state.tangent)
     out = [np.empty(n) for _ in range(4)] + [
@@ -199,14 +199,14 @@ def _kernel_calls(engine, state) -> list:
     return [
         lambda: ns.contact_blocks(x, *frozen, 1.0, sysm.position, band, B, C, D, lay.kl,
                                   lay.ku, r_pot, r),
-        lambda: bordered.newton_update(band, B, C, D, lay.kl, lay.ku, ar.ipiv.copy(),
-                                       ar.ipiv_s.copy(), sysm.position, r_layout, du,
+        lambda: bordered.newton_update(band, B, C, D, lay.kl, lay.ku, ar.ipiv,
+                                       ar.ipiv_s, sysm.position, r_layout, du,
                                        s.u.copy(), False),
         lambda: ns._residual_tangent(nm, frozen, *history, *system, r, r_pot, r_layout,
                                      blocks),
         lambda: ns._residual(nm, frozen, *history, r, r_pot, blocks),
         lambda: ns.attempt(nm, frozen, sysm.position, sysm.block_positions, sysm.free, band,
-                           B, C, D, ar.ipiv.copy(), ar.ipiv_s.copy(), lay.kl, lay.ku, s.u,
+                           B, C, D, ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u,
                            s.v, s.a, s.f_pot, s.load_state.theta, s.load_state.tangent, 1e-3,
                            0.0, 1e-8, 1e-9, 1e-3, 1.0, 10, 4, np.nan, np.nan, *out),
         lambda: ssn.step_set_at(x, x.copy(), v, v.copy(), 1e-3, 0.0, ne, law),

@@ -436,8 +436,7 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
                     DYNAMIC_COLUMNS)
     first = None if contact is None else contact.first_capacity(case.contact.capacity)
     diag0 = begin.engine.energies(state, first)
-    diag0 = {**diag0, "E_total": total_energy(diag0), "error": 0.0, "E_dissipated": 0.0,
-             "E_set_change": 0.0}
+    diag0 = {**diag0, "E_dissipated": 0.0, "E_set_change": 0.0}
     _save(rec, StepBatch.initial(state, diag0, an.dt), np.zeros(1, np.int64),
           np.zeros(1, np.int64), np.zeros((1, len(KINDS))))
     rec.snapshot(0.0, state.u)

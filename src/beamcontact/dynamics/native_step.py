@@ -603,11 +603,11 @@ class NativeEngine:
         from beamcontact import _warmup
         from beamcontact.dynamics import native_loop
 
+        s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
         waited = time.perf_counter()
-        _warmup.help_while_waiting(self, state)
+        _warmup.help_while_waiting(self, s)
         _warmup.wait()  # a helper compiling the loop into an empty cache
         waited = time.perf_counter() - waited
-        s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
         u, v, a, f_pot = (np.array(x, dtype=np.float64) for x in (s.u, s.v, s.a, s.f_pot))
         theta = np.array(s.load_state.theta, dtype=np.float64)
         tangent = np.array(s.load_state.tangent, dtype=np.float64)
