@@ -263,10 +263,11 @@ def _lu_every_column(D):
 
 
 def test_dense_lu_of_a_banded_block_skips_only_exact_zeros():
-    """A beam without contact is a banded border block D: dense_lu updates each row only
-    up to the last nonzero of the pivot row, and its factors are those of the update of
-    every column, bit for bit (supported rows and columns with their -0 entries
-    included)."""
+    """A beam without contact is a banded border block D: dense_lu leaves the rows whose
+    entry in the pivot column is zero alone and updates the others only up to the last
+    nonzero of the pivot row, and its factors equal those of the update of every row and
+    column (supported rows and columns with their -0 entries included; a zero multiplier
+    not divided may differ in the sign of its zero only)."""
     rng = np.random.default_rng(11)
     m, kl, ku = 40, 5, 5
     D = np.zeros((m, m))
@@ -433,3 +434,49 @@ def test_singular_pivot_block_is_reported():
     info, x = _factor_solve(arrays, kl, ku, rhs)
     assert 1 <= info <= n_b
     assert np.all(np.isnan(x))
+
+
+def test_band_solve_rows_is_band_solve_column_by_column():
+    """X = A^{-1} B for a border block whose nonzero columns are a narrow range (contact
+    couples neighbouring elements): band_solve_rows works over that range only, and each
+    column is the one band_solve gives for it alone, bit for bit, the zero columns
+    exactly zero."""
+    case = (124, 9, 9, 52)
+    n_b, kl, ku, m = case
+    arrays, _, _ = _system(case, seed=3)
+    assert bn.band_lu(arrays.band, kl, ku, arrays.ipiv) == 0
+    B = np.zeros((n_b, m))
+    B[60:80, 20:31] = np.random.default_rng(4).standard_normal((20, 11))
+    X = B.copy()
+    bn.band_solve_rows(arrays.band, kl, ku, arrays.ipiv, X)
+    for c in range(m):
+        x = B[:, c].copy()
+        bn.band_solve(arrays.band, kl, ku, arrays.ipiv, x)
+        assert np.array_equal(X[:, c], x)
+    assert not X[:, :20].any() and not X[:, 31:].any()
+    assert np.abs(X[:, 20:31]).min() > 0.0  # A^{-1} fills the columns in
+
+
+def test_an_uncoupled_system_ignores_what_a_coupled_one_left_in_the_border():
+    """zero(..., coupled=False) leaves B and C as a coupled factorisation left them
+    (X = A^{-1} B over B): the uncoupled factorisation and solve never read them, and
+    the solution is that of fresh arrays, bit for bit."""
+    case = (124, 9, 9, 52)
+    n_b, kl, ku, m = case
+    coupled, _, rhs = _system(case, seed=7)
+    assert bn.factor(coupled.band, coupled.B, coupled.C, coupled.D, kl, ku, coupled.ipiv,
+                     coupled.ipiv_s) == 0
+    assert coupled.B.any() and coupled.C.any()
+    blocks = [(d, k) for d, k in _blocks(n_b, kl, ku, m, 8) if not (d.min() < n_b <= d.max())]
+    fresh = _assemble(n_b, kl, ku, m, blocks)
+    reused = coupled
+    bn.zero(reused.band, reused.B, reused.C, reused.D, False)
+    for d, k in blocks:
+        bn.add_block(reused.band, reused.B, reused.C, reused.D, kl, ku, d, k)
+    xs = []
+    for arrays in (fresh, reused):
+        x = np.empty(n_b + m)
+        assert bn.factor_solve(arrays.band, arrays.B, arrays.C, arrays.D, kl, ku,
+                               arrays.ipiv, arrays.ipiv_s, rhs, x, False) == 0
+        xs.append(x)
+    assert np.array_equal(xs[0], xs[1])

@@ -237,12 +237,21 @@ def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out, tangent=True):
     the loads; ``tangent`` False: the element blocks are left alone); r_el (n_el, m) is
     scratch. Returns the strain energy at x (the sum of :func:`energies`' E_strain, bit
     for bit: the same element energies in the same order)."""
-    n_el = nm.conn.shape[0]
     # k_out whole, not k_out[:n_el]: the kernel writes only rows e < n_el, and a slice
     # would be typed as a non-contiguous array and compile a slower element kernel
     e_strain = energy_native.block_strain_residual_tangent(
         x, nm.conn, nm.dR, nm.ddR, nm.wq, nm.g_ref, nm.K_ref, nm.eta, nm.w_eta, nm.E, r_el,
         k_out, tangent)
+    _external_forces(nm, x, lam, theta_n, t_n, r_el, r_out, k_out)
+    return e_strain
+
+
+@njit
+def _external_forces(nm, x, lam, theta_n, t_n, r_el, r_out, k_out):
+    """The rest of :func:`_potential` once the element strain forces are in r_el: gravity
+    added to them, the elements' forces added to r_out in element order, then the point
+    loads' forces and blocks (k_out[n_el + i])."""
+    n_el = nm.conn.shape[0]
     R, wq, g_ref, gravity, dofs = nm.R, nm.wq, nm.g_ref, nm.gravity, nm.block_dofs
     for e in range(n_el):
         c = lam * nm.rho_area[e] * nm.gravity_on[e]
@@ -258,7 +267,6 @@ def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out, tangent=True):
             x_l, nm.load_R[i], nm.load_dR[i], nm.load_force[i], nm.load_moment[i],
             theta_n[i], t_n[i], lam, r_l, k_out[n_el + i])
         _scatter_add(nm.block_dofs[n_el + i], r_l, r_out)
-    return e_strain
 
 
 @njit
@@ -316,41 +324,43 @@ def external_energies(nm, x, lam, theta_n, t_n):
     return lam * e_grav, e_ext
 
 
+@njit_inline
+def _inertia_scratch(n_el, n):
+    """The scratch of :func:`_element_inertia_at` for n_el elements of n control points,
+    one row per element (w_e, m, jac, J): an allocation per element costs more than its
+    sums."""
+    return (np.empty((n_el, 5, n, 2)), np.empty((n_el, 2)), np.empty((n_el, 3, 2, 2)),
+            np.empty((n_el, 2, 2)))
+
+
+@njit_inline
+def _element_inertia_at(e, conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref, rho_area,
+                        rho_inertia, w_e, m, jac, J, r_e, k_e, tangent):
+    """Element e's inertia residual into r_e and (``tangent``) its block into k_e, its
+    control-point values gathered into the scratch w_e (5, n, 2) (m, jac, J: the
+    kernel's scratch)."""
+    c = conn[e]
+    _gather(u2, c, w_e[0])
+    _gather(un2, c, w_e[1])
+    _gather(vn2, c, w_e[2])
+    _gather(an2, c, w_e[3])
+    _gather(x_ref, c, w_e[4])
+    inertia_native._element_inertia(w_e[0], w_e[1], w_e[2], w_e[3], w_e[4], coeffs, R[e],
+                                    dR[e], wq[e], g_ref[e], rho_area[e], rho_inertia[e], r_e,
+                                    k_e, m, jac, J, tangent)
+
+
 @njit_parallel
 def _inertia_elements(conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref, rho_area,
-                      rho_inertia, r_el, k_el, tangent):
-    """Every element's inertia residual into r_el[e] and (``tangent``) its block into
-    k_el[e], the elements on the cores (each whole on one thread)."""
+                      rho_inertia, r_el, k_el):
+    """Every element's inertia residual into r_el[e] and its block into k_el[e], the
+    elements on the cores (each whole on one thread)."""
     n_el, n = conn.shape
+    w_all, m_all, jac_all, J_all = _inertia_scratch(n_el, n)
     for e in prange(n_el):
-        w_e = np.empty((5, n, 2))
-        c = conn[e]
-        _gather(u2, c, w_e[0])
-        _gather(un2, c, w_e[1])
-        _gather(vn2, c, w_e[2])
-        _gather(an2, c, w_e[3])
-        _gather(x_ref, c, w_e[4])
-        inertia_native.element_inertia_residual_tangent(
-            w_e[0], w_e[1], w_e[2], w_e[3], w_e[4], coeffs, R[e], dR[e], wq[e], g_ref[e],
-            rho_area[e], rho_inertia[e], r_el[e], k_el[e], tangent)
-
-
-@njit
-def _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, add, tangent=True):
-    """The inertia residual added to r_out and its element blocks written into
-    k_out[:n_el], or added to them if ``add`` (in element order, whatever the threads);
-    ``tangent`` False: the blocks are left alone."""
-    shape = nm.x_ref.shape
-    n_el, n = nm.conn.shape
-    r_el = np.empty((n_el, 2 * n))
-    k_el = np.empty((n_el, 2 * n, 2 * n)) if add and tangent else k_out
-    _inertia_elements(nm.conn, nm.x_ref, u.reshape(shape), u_n.reshape(shape),
-                      v_n.reshape(shape), a_n.reshape(shape), coeffs, nm.R, nm.dR, nm.wq,
-                      nm.g_ref, nm.rho_area, nm.rho_inertia, r_el, k_el, tangent)
-    for e in range(n_el):
-        _scatter_add(nm.block_dofs[e], r_el[e], r_out)
-        if add and tangent:
-            k_out[e] += k_el[e]
+        _element_inertia_at(e, conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref,
+                            rho_area, rho_inertia, w_all[e], m_all[e], jac_all[e], J_all[e],
+                            r_el[e], k_el[e], True)
 
 
 @njit
@@ -366,7 +376,14 @@ def inertia_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out):
             blocks, dofs nm.block_dofs[:n_el]; the inertia has no load blocks).
     """
     r_out[:] = 0.0
-    _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, False)
+    shape = nm.x_ref.shape
+    n_el, n = nm.conn.shape
+    r_el = np.empty((n_el, 2 * n))
+    _inertia_elements(nm.conn, nm.x_ref, u.reshape(shape), u_n.reshape(shape),
+                      v_n.reshape(shape), a_n.reshape(shape), coeffs, nm.R, nm.dR, nm.wq,
+                      nm.g_ref, nm.rho_area, nm.rho_inertia, r_el, k_out)
+    for e in range(n_el):
+        _scatter_add(nm.block_dofs[e], r_el[e], r_out)
 
 
 @njit
@@ -383,15 +400,51 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
     Newton check of an iterate expected to have converged, dynamics/native_step.py)."""
     c = 1.0 + alpha
     r_pot_out[:] = 0.0
-    r_el = np.empty((nm.conn.shape[0], nm.block_dofs.shape[1]))
-    e_strain = _potential(nm, _positions(nm.x_ref, u), 1.0, theta_n, t_n, r_el, r_pot_out,
-                          k_out, tangent)
+    shape = nm.x_ref.shape
+    n_el, n = nm.conn.shape
+    x = _positions(nm.x_ref, u)
+    r_el, r_in = np.empty((n_el, nm.block_dofs.shape[1])), np.empty((n_el, 2 * n))
+    k_in = np.empty((n_el, 2 * n, 2 * n)) if tangent else k_out
+    energies = np.empty(n_el)
+    _hht_elements(x, nm.conn, nm.dR, nm.ddR, nm.wq, nm.g_ref, nm.K_ref, nm.eta, nm.w_eta,
+                  nm.E, nm.x_ref, u.reshape(shape), u_n.reshape(shape), v_n.reshape(shape),
+                  a_n.reshape(shape), coeffs, nm.R, nm.rho_area, nm.rho_inertia, r_el, k_out,
+                  energies, r_in, k_in, tangent)
+    e_strain = 0.0
+    for e in range(n_el):  # in element order, as block_strain_residual_tangent sums
+        e_strain += energies[e]
+    _external_forces(nm, x, 1.0, theta_n, t_n, r_el, r_pot_out, k_out)
     for i in range(r_out.shape[0]):
         r_out[i] = c * r_pot_out[i] - alpha * f_pot_n[i]
     if tangent:
         k_out *= c
-    _inertia(nm, u, u_n, v_n, a_n, coeffs, r_out, k_out, True, tangent)
+    for e in range(n_el):
+        _scatter_add(nm.block_dofs[e], r_in[e], r_out)
+        if tangent:
+            k_out[e] += k_in[e]
     return e_strain
+
+
+@njit_parallel
+def _hht_elements(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, x_ref, u2, un2, vn2, an2,
+                  coeffs, R, rho_area, rho_inertia, r_strain, k_strain, energies, r_inertia,
+                  k_inertia, tangent):
+    """Each element's strain force, block and energy (as
+    :func:`~beamcontact.beam.energy_native.block_strain_residual_tangent`) into
+    r_strain[e], k_strain[e], energies[e] and its inertia force and block (as
+    :func:`inertia_residual_blocks`) into r_inertia[e], k_inertia[e], in one pass over the
+    elements on the cores: one parallel loop per evaluation of the HHT residual instead
+    of two, each element whole on one thread (``tangent`` False: no blocks)."""
+    n_el, n = conn.shape
+    x_all, grad_all, hess_all = energy_native.element_scratch(n_el, n)
+    w_all, m_all, jac_all, J_all = _inertia_scratch(n_el, n)
+    for e in prange(n_el):
+        energies[e] = energy_native.element_strain_at(
+            e, x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, x_all[e], grad_all[e],
+            hess_all[e], r_strain[e], k_strain[e], tangent)
+        _element_inertia_at(e, conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref,
+                            rho_area, rho_inertia, w_all[e], m_all[e], jac_all[e], J_all[e],
+                            r_inertia[e], k_inertia[e], tangent)
 
 
 @njit

@@ -18,7 +18,8 @@ same sums as ``_beam_residual_tangent`` of assembly/system.py; dofs are ordered 
 x_e.ravel() (x, y of each control point in turn).
 
 Arrays are float64; the kernels write into arrays the caller owns and allocate only a
-few scratch numbers per call (per block for :func:`block_strain_residual_tangent`).
+few scratch numbers per call (one array of them per block for
+:func:`block_strain_residual_tangent`).
 """
 
 import numpy as np
@@ -219,6 +220,27 @@ def element_strain_energy(x_e, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E):
     return energy
 
 
+@njit_inline
+def element_scratch(n_el, n):
+    """The scratch of :func:`element_strain_at` for n_el elements of n control points,
+    one row per element (x_e, grad, hess): an allocation per element costs more than
+    its sums."""
+    return np.empty((n_el, n, 2)), np.empty((n_el, 4)), np.empty((n_el, 4, 4))
+
+
+@njit_inline
+def element_strain_at(e, x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, x_e, grad, hess,
+                      r_e, k_e, tangent):
+    """Element e of a block (fields as :func:`block_strain_residual_tangent`): its control
+    points gathered from x into the scratch x_e, its force into r_e and (``tangent``) its
+    block into k_e; returns its strain energy."""
+    for k in range(conn.shape[1]):
+        x_e[k, 0] = x[conn[e, k], 0]
+        x_e[k, 1] = x[conn[e, k], 1]
+    return _element(x_e, dR[e], ddR[e], wq[e], g_ref[e], K_ref[e], eta[e], w_eta[e], E[e],
+                    r_e, k_e, grad, hess, tangent)
+
+
 @njit_parallel
 def block_strain_residual_tangent(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, r_out,
                                   k_out, tangent=True):
@@ -230,14 +252,11 @@ def block_strain_residual_tangent(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta
     numbers, bit for bit (the tangent's arithmetic is apart from theirs)."""
     n_el, n = conn.shape
     energies = np.empty(n_el)
+    x_all, grad_all, hess_all = element_scratch(n_el, n)
     for e in prange(n_el):
-        x_e = np.empty((n, 2))
-        for k in range(n):
-            x_e[k, 0] = x[conn[e, k], 0]
-            x_e[k, 1] = x[conn[e, k], 1]
-        energies[e] = _element(x_e, dR[e], ddR[e], wq[e], g_ref[e], K_ref[e], eta[e],
-                               w_eta[e], E[e], r_out[e], k_out[e], np.empty(4),
-                               np.empty((4, 4)), tangent)
+        energies[e] = element_strain_at(e, x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E,
+                                        x_all[e], grad_all[e], hess_all[e], r_out[e],
+                                        k_out[e], tangent)
     energy = 0.0
     for e in range(n_el):  # in element order, whatever the threads
         energy += energies[e]

@@ -220,13 +220,20 @@ def element_inertia_residual_tangent(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, d
     the rotational term is M_x + dt gamma c_a M_v + c_a M_a (dv/du = dt gamma c_a,
     da/du = c_a).
     """
+    return _element_inertia(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, dR, wq, g_ref,
+                            rho_area, rho_inertia, r_out, k_out, np.empty(2),
+                            np.empty((3, 2, 2)), np.empty((2, 2)), tangent)
+
+
+@njit
+def _element_inertia(u_e, un_e, vn_e, an_e, xref_e, coeffs, R, dR, wq, g_ref, rho_area,
+                     rho_inertia, r_out, k_out, m, jac, J, tangent=True):
+    """:func:`element_inertia_residual_tangent` with scratch m (2,), jac (3, 2, 2) and
+    J (2, 2)."""
     c_a, dt, gamma = coeffs[0], coeffs[1], coeffs[3]
     r_out[:] = 0.0
     if tangent:
         k_out[:, :] = 0.0
-    m = np.empty(2)
-    jac = np.empty((3, 2, 2))
-    J = np.empty((2, 2))
     for q in range(wq.shape[0]):
         ds = wq[q] * np.sqrt(g_ref[q])
         rho_ds = rho_area * ds

@@ -131,11 +131,11 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
     u, the strain energy at u)."""
     e_strain = nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
                                         t_n, r, r_pot, k_blocks)
-    bordered.zero(band, B, C, D)
-    bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
-    e_contact = 0.0
     # without contact blocks no entry couples the band's beam with the border
     coupled = contact[2].shape[0] > 0
+    bordered.zero(band, B, C, D, coupled)
+    bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
+    e_contact = 0.0
     if coupled:
         e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha,
                                    position, band, B, C, D, kl, ku, r_pot, r)

@@ -146,11 +146,14 @@ def _check_widths(band, kl, ku):
 
 
 @njit
-def zero(band, B, C, D):
-    """Set the system to zero (fill-in rows of the band included)."""
+def zero(band, B, C, D, coupled=True):
+    """Set the system to zero (fill-in rows of the band included); ``coupled`` False:
+    B and C are left as they are, for a system that :func:`factor` and :func:`solve`
+    will be told is not coupled (they never read B and C then)."""
     band[:] = 0.0
-    B[:] = 0.0
-    C[:] = 0.0
+    if coupled:
+        B[:] = 0.0
+        C[:] = 0.0
     D[:] = 0.0
 
 
@@ -383,47 +386,55 @@ def band_solve_rows(band, kl, ku, ipiv, X):
     """X <- A^{-1} X for X (n_b, r), all columns at once: every operation of
     :func:`band_solve` on a scalar becomes one on a contiguous row of X.
 
-    Contact couples few dofs of the band, so the leading rows of B are often zero; the
-    steps before max(0, f - kl), f the first nonzero row, interchange and eliminate zero
-    rows only (ipiv[j] <= j + kl < f) and are skipped.
+    Contact couples few dofs of the band with few of the border, so most rows and
+    columns of B are zero. The steps before max(0, f - kl), f the first nonzero row,
+    interchange and eliminate zero rows only (ipiv[j] <= j + kl < f) and are skipped;
+    the columns outside the range of the nonzero ones are zero and stay zero (A^{-1} 0 =
+    0), so each row operation runs over that range only.
     """
     n = X.shape[0]
-    r = X.shape[1]
     kv = kl + ku
-    f = n
+    # the first nonzero row f, and the nonzero columns c0 .. c1 - 1: the other columns
+    # are zero and stay zero
+    f, c0, c1 = n, X.shape[1], 0
     for i in range(n):
-        nonzero = False
-        for c in range(r):
+        for c in range(X.shape[1]):
             if X[i, c] != 0.0:
-                nonzero = True
-                break
-        if nonzero:
-            f = i
-            break
+                f = min(f, i)
+                c0 = min(c0, c)
+                c1 = max(c1, c + 1)
     if f == n:
         return
+    # row operations on 1-d slices, taken outside the branches (as in band_lu): 2.1 times
+    # faster than 2-d indexing for a block of 124 x 52
+    w = c1 - c0
     for j in range(max(0, f - kl), n - 1):
         km = min(kl, n - 1 - j)
         p = ipiv[j]
+        xj = X[j, c0:c1]
         if p != j:
-            for c in range(r):
-                t = X[j, c]
-                X[j, c] = X[p, c]
-                X[p, c] = t
+            xp = X[p, c0:c1]
+            for c in range(w):
+                t = xj[c]
+                xj[c] = xp[c]
+                xp[c] = t
         for i in range(1, km + 1):
             mult = band[j, kv + i]
+            target = X[j + i, c0:c1]
             if mult != 0.0:
-                for c in range(r):
-                    X[j + i, c] -= mult * X[j, c]
+                for c in range(w):
+                    target[c] -= mult * xj[c]
     for j in range(n - 1, -1, -1):
         d = band[j, kv]
-        for c in range(r):
-            X[j, c] = X[j, c] / d
+        xj = X[j, c0:c1]
+        for c in range(w):
+            xj[c] = xj[c] / d
         for i in range(max(0, j - kv), j):
             u = band[j, kv + i - j]
+            target = X[i, c0:c1]
             if u != 0.0:
-                for c in range(r):
-                    X[i, c] -= u * X[j, c]
+                for c in range(w):
+                    target[c] -= u * xj[c]
 
 
 # ---------------------------------------------------------------- dense LU
@@ -462,7 +473,12 @@ def dense_lu(D, ipiv):
             width -= 1
         for i in range(k + 1, m):
             target = D[i, k + 1:]
-            mult = D[i, k] / pivot
+            d = D[i, k]
+            if d == 0.0:
+                # a zero multiplier changes nothing (a banded block: every row below the
+                # band); the division would only have given it a sign
+                continue
+            mult = d / pivot
             D[i, k] = mult
             if mult != 0.0:
                 for c in range(width):
@@ -505,10 +521,9 @@ def factor(band, B, C, D, kl, ku, ipiv, ipiv_s, coupled=True):
     the others, as in free flight): X = 0 and S = D, and the passes over B and C are
     skipped (they would only add exact zeros).
 
-    All m columns of B are solved for, although contact leaves most of them zero: packing
-    the nonzero ones into a narrower block costs as much as it saves at these sizes (the
-    row loops of :func:`band_solve_rows` do not get proportionally cheaper with fewer
-    columns). The zero entries of C are skipped in S = D - C X.
+    The columns of B are solved for over the range of its nonzero ones
+    (:func:`band_solve_rows`): contact couples a few neighbouring elements of each beam,
+    so that range is narrow. The zero entries of C are skipped in S = D - C X.
     """
     _check_widths(band, kl, ku)
     n_b = band.shape[0]
@@ -521,11 +536,13 @@ def factor(band, B, C, D, kl, ku, ipiv, ipiv_s, coupled=True):
     if coupled:
         band_solve_rows(band, kl, ku, ipiv, B)
         for k in range(m):
+            dk = D[k]
             for j in range(n_b):
                 cv = C[k, j]
+                bj = B[j]
                 if cv != 0.0:
                     for q in range(m):
-                        D[k, q] -= cv * B[j, q]
+                        dk[q] -= cv * bj[q]
     info = dense_lu(D, ipiv_s)
     if info != 0:
         return n_b + info
