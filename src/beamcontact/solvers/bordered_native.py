@@ -522,8 +522,9 @@ def factor(band, B, C, D, kl, ku, ipiv, ipiv_s, coupled=True):
     skipped (they would only add exact zeros).
 
     The columns of B are solved for over the range of its nonzero ones
-    (:func:`band_solve_rows`): contact couples a few neighbouring elements of each beam,
-    so that range is narrow. The zero entries of C are skipped in S = D - C X.
+    (:func:`band_solve_rows`): narrow where contact couples a few neighbouring elements
+    of each beam, the whole border where a coarse-grained cutoff reaches along the
+    beam. The zero entries of C are skipped in S = D - C X.
     """
     _check_widths(band, kl, ku)
     n_b = band.shape[0]
