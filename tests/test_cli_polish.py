@@ -1,6 +1,7 @@
 """Command line polish (issue 11 item 6): --version, help texts that keep their brackets,
 progress displays within 80 columns, and the exit on an interrupted run."""
 
+import gc
 import io
 import json
 import os
@@ -242,6 +243,32 @@ def test_run_hands_a_progress_info_callback_to_the_runner(fake_runner, tmp_path)
     assert result.stdout.count("Free fall of an elastic beam onto another beam") == 1
     assert "completed: t_end reached" in result.stdout
     assert max(len(line) for line in result.stdout.splitlines()) <= WIDTH
+
+
+@pytest.mark.parametrize("ends", ["completed", "interrupted"])
+def test_the_collector_runs_while_the_steps_run_and_is_restored(fake_runner, tmp_path, ends):
+    """`run` pauses Python's cyclic garbage collector while a run starts (what the start
+    makes lives as long as the process), runs it while the steps run, pauses it again
+    when they reach the end (the figures, the exit) and leaves it as it was, also when
+    the run is interrupted."""
+    seen = []
+
+    def do(progress):
+        seen.append(gc.isenabled())
+        progress(ProgressInfo(0.5, "t", 1.0, 10, 1e-3, 2))
+        seen.append(gc.isenabled())
+        if ends == "interrupted":
+            raise KeyboardInterrupt
+        progress(ProgressInfo(1.0, "t", 2.0, 20, 1e-3, 2))
+        seen.append(gc.isenabled())
+        return SUMMARY
+
+    fake_runner["do"] = do
+    assert gc.isenabled()
+    result = CliRunner().invoke(app, ["run", "--out", str(tmp_path / "out"), "--quiet"])
+    assert result.exit_code == (0 if ends == "completed" else 130), result.output
+    assert seen == ([False, True, False] if ends == "completed" else [False, True])
+    assert gc.isenabled()
 
 
 def test_interrupted_run_exits_130_and_says_where_results_are(fake_runner, tmp_path):

@@ -17,6 +17,8 @@ import gc
 import os
 import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from importlib import resources
 from pathlib import Path
 from typing import Annotated
@@ -177,6 +179,12 @@ def run(
     summary.json says where it stopped, --restart continues). A result that cannot be
     written (a full disk) ends the run with code 1 and one line; what was written is kept.
     """
+    with _collector_paused():  # but while the steps run (_collect_during_steps)
+        _run(case, out, quiet, restart, overwrite)
+
+
+def _run(case: Path | None, out: Path | None, quiet: bool, restart: bool,
+         overwrite: bool) -> None:
     import beamcontact
     from beamcontact._cache import enable_compilation_cache
 
@@ -195,9 +203,6 @@ def run(
     import beamcontact.runner  # noqa: F401
     from beamcontact.stop_signals import stop_signals_interrupt
 
-    # the objects of the imports are never garbage: moved out of the collector's sight,
-    # its full collections during the run take 0.1-0.2 s less (each walked them all)
-    gc.freeze()
     with stop_signals_interrupt():
         summary = _run_with_progress(parsed, text, out, parsed.title or case.name,
                                      show=not quiet, restart=restart, overwrite=overwrite)
@@ -219,14 +224,52 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
 
     try:
         with progress_bar(title, enabled=show) as progress:
-            return run_case(parsed, text, out, progress, restart=restart,
-                            overwrite=overwrite)
+            return run_case(parsed, text, out, _collect_during_steps(progress),
+                            restart=restart, overwrite=overwrite)
     except CaseError as exc:
         _fail(str(exc), 2)
     except OutputError as exc:
         _fail(f"{exc}; what was written before is in {out}", 1)
     except KeyboardInterrupt as exc:
         _interrupted(out, getattr(exc, "name", None))
+
+
+@contextmanager
+def _collector_paused() -> Iterator[None]:
+    """Python's cyclic garbage collector paused within the block (and running within it
+    where :func:`_collect_during_steps` starts it), as it was before after it."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
+def _collect_during_steps(progress):
+    """``progress``, with Python's cyclic garbage collector running while the steps run
+    and paused before and after them.
+
+    ``beamcontact run`` starts with the collector paused: the imports and the start of a
+    run (Numba's own start, the compiled kernels, the model) make objects that live as
+    long as the process, and the collector's passes over them find nothing (about 0.1 s
+    of a short run: the stiff drop of benchmarks/peers.py 2.11 -> 1.98 s). The first
+    report of accepted steps moves what exists then out of the collector's sight
+    (``gc.freeze``) and starts it, since a long run may make cyclic garbage; the report
+    that the steps reached the end pauses it again for the figures (matplotlib's
+    objects, imported while the steps ran) and the exit, which free everything anyway.
+    A run that stops early draws its figures with the collector running. After the
+    command the collector is as it was before (:func:`_collector_paused`)."""
+    def report(info):
+        if info.fraction >= 1.0:
+            gc.disable()
+        elif not gc.isenabled():
+            gc.freeze()
+            gc.enable()
+        progress(info)
+
+    return report
 
 
 def _interrupted(out: Path, signal_name: str | None) -> None:
