@@ -236,8 +236,8 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
 
 @contextmanager
 def _collector_paused() -> Iterator[None]:
-    """Python's cyclic garbage collector paused within the block (and running within it
-    where :func:`_collect_during_steps` starts it), as it was before after it."""
+    """Python's cyclic garbage collector paused within the block, but while the steps run
+    (:func:`_collect_during_steps`); after the block it is as it was before."""
     was = gc.isenabled()
     gc.disable()
     try:
