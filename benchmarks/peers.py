@@ -46,6 +46,7 @@ today). Numbers and machine: benchmarks/README.md.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import re
@@ -84,18 +85,14 @@ def _loop_time(stdout: str) -> float:
     return float(m.group(1))
 
 
-_WARMED: set[str] = set()
-
-
+@functools.cache
 def warm_up_pyelastica(tmp: Path) -> None:
     """Run PyElastica once, untimed, for 0.01 s: it compiles its numba kernels at their
     first use and keeps them on disk, so that a first timed run in a fresh environment
     would time its compilation (36.7 s against 9.4 s of process in session 21). The
     timed runs of both codes then start with warm caches (beamcontact's own warm-up run
-    is in :func:`case_drop`)."""
-    if "pyelastica" not in _WARMED:
-        pyelastica(1e-4, 0.01, tmp / "pe_warm_up.csv", 1.0e7)
-        _WARMED.add("pyelastica")
+    is in :func:`case_drop`). Once per folder (``functools.cache``)."""
+    pyelastica(1e-4, 0.01, tmp / "pe_warm_up.csv", 1.0e7)
 
 
 def pyelastica(dt: float, t_end: float, out: Path, E: float) -> dict:

@@ -243,8 +243,7 @@ def _collector_paused() -> Iterator[None]:
     try:
         yield
     finally:
-        if was:
-            gc.enable()
+        (gc.enable if was else gc.disable)()
 
 
 def _collect_during_steps(progress):
