@@ -223,6 +223,10 @@ def test_compilation_cache_location_and_identical_results(tmp_path, monkeypatch,
         assert any((tmp_path / "cache" / "numba").rglob("*.nbi"))
         assert any((tmp_path / "cache" / "numba").glob("*/loop-*.ready"))
         assert not any((tmp_path / "cache" / "numba").glob("*/loop-*.lock"))
+        # and succeeded: a helper that fails leaves its error output, and the run
+        # compiles the loop itself
+        errors = list((tmp_path / "cache" / "numba").glob("*/loop-*.err"))
+        assert not errors, errors[0].read_text()
         # the helper's kernel calls and the run's help pass the loop's own types: the
         # loop compiled no second version of any of them (nor did the start, of the
         # solver's kernels)

@@ -187,15 +187,92 @@ class CoreShare:
 prange = numba.prange
 
 
+def _optimise_outermost_only() -> bool:
+    """Run LLVM's module optimisation only on the code of a compile that Python asked for,
+    not again on each kernel that it compiles on the way (docs/engines.md,
+    "Compilation"). Returns whether the hook is in place.
+
+    Numba compiles a kernel's callees first, each into a library of its own that it
+    optimises whole, then links them into the caller's library and optimises that whole
+    again, so a kernel five calls deep is optimised five times: with empty caches that was
+    34 s of the 85 s that the bundled benchmark compiled on one core (session 22). Only the
+    outermost library's code runs when the caller is compiled code (the callees are linked
+    into it and optimised there, with everything inlined), so a library of ours compiled
+    inside another compile keeps Numba's per-function passes and skips the module passes.
+    The arithmetic is unchanged, float for float: no fast-math, and LLVM keeps IEEE
+    semantics at every level, so the results are the same bit for bit (tested against
+    the JAX engine and the recorded histories as before). A kernel first compiled inside
+    another and later called from Python runs that less optimised code; the entry points
+    of the engine are called from Python first. Libraries of other packages are left as
+    Numba makes them. Without the Numba internals this relies on (``numba.core.event``'s
+    compile events, ``CPUCodeLibrary._optimize_final_module``), nothing changes."""
+    try:
+        from numba.core import codegen, event
+        library_class = codegen.CPUCodeLibrary
+        optimise = library_class._optimize_final_module
+    except (ImportError, AttributeError):
+        return False
+    compiling: list[bool] = []  # per compile in progress: is the function ours?
+
+    class _Compiles(event.Listener):
+        def on_start(self, ev):
+            dispatcher = ev.data.get("dispatcher")
+            module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+            compiling.append(module.startswith("beamcontact."))
+
+        def on_end(self, ev):
+            if compiling:
+                compiling.pop()
+
+    def optimise_outermost(library):
+        if len(compiling) > 1 and compiling[-1]:
+            return
+        optimise(library)
+
+    event.register("numba:compile", _Compiles())
+    library_class._optimize_final_module = optimise_outermost
+    return True
+
+
+OPTIMISE_OUTERMOST_ONLY = _optimise_outermost_only()
+
+
+def _typed_without_constants(dispatcher):
+    """``dispatcher``, compiled for the types of the values that compiled callers pass,
+    never for the constants themselves.
+
+    Numba compiles a kernel that compiled code calls for the argument types at the call,
+    and a constant argument (``False``, ``0``, ``-1``) has a type of its own per value:
+    a kernel called with ``tangent=False`` in one place and a variable in another was
+    compiled twice, and with it every kernel it passes the constant on to (session 22:
+    15 such second compiles in the bundled benchmark, about 7 s of its compile). So the
+    call is typed with the constants' plain types (``types.unliteral``); Numba converts
+    a constant to its plain type at the call. No kernel of ours dispatches on the value
+    of a constant (``numba.literally``)."""
+    from numba.core import types
+
+    typed = dispatcher.get_call_template
+
+    def get_call_template(args, kws):
+        return typed(tuple(types.unliteral(a) for a in args),
+                     {k: types.unliteral(v) for k, v in kws.items()})
+
+    dispatcher.get_call_template = get_call_template
+    return dispatcher
+
+
 def _compiled(func, **options):
     """``numba.njit(func, **options)`` with the project's options and its on-disk cache
-    (compiled anew each process when the cache is off)."""
+    (compiled anew each process when the cache is off), compiled for plain argument
+    types (:func:`_typed_without_constants`)."""
     if _CACHE_DIR is None:
-        return numba.njit(func, cache=False, **options, **_OPTIONS)
+        return _typed_without_constants(numba.njit(func, cache=False, **options,
+                                                   **_OPTIONS))
     saved = numba.config.CACHE_DIR
     numba.config.CACHE_DIR = str(_CACHE_DIR)
     try:
-        return numba.njit(func, cache=True, **options, **_OPTIONS)
+        return _typed_without_constants(numba.njit(func, cache=True, **options,
+                                                   **_OPTIONS))
     finally:
         numba.config.CACHE_DIR = saved
 

@@ -1,23 +1,26 @@
 """Compiling the native time loop in a helper process while a run with empty caches
 compiles the rest (docs/engines.md, "Compilation").
 
-With empty caches the native kernels take about two minutes to compile on one core. The
-compiled time loop (:func:`beamcontact.dynamics.native_loop.run`) and its kernels are a
-run's largest part, and a run needs them only after its start (the contact set at t = 0,
-the initial acceleration, the first energies and checks). The loop's signature is the
-same for every model, so a helper process compiles it on a tiny model of its own, into
-the shared cache, while the run compiles its start on the other core; the run then
-waits for the helper and loads the loop from the cache. The two share kernels: the
+With empty caches the native kernels take about 50 s to compile on one core (session 22).
+The compiled time loop (:func:`beamcontact.dynamics.native_loop.run`) and its kernels are
+a run's largest part, and a run needs them only after its start (the contact set at
+t = 0, the initial acceleration, the first energies and checks). The loop's signature is
+the same for every model, so a helper process compiles it on a tiny model of its own,
+into the shared cache, while the run compiles its start on the other core; the run then
+waits for the helper and loads the loop from the cache. The run starts the helper before
+it builds its model (:func:`beamcontact.setup.start.compile_loop_early`), and the helper
+evaluates the splines of its model as Python (:func:`_splines_in_python`), so that it
+does not wait for the spline kernels. The two share kernels: the
 helper compiles the loop's kernels one by one first (:func:`_kernel_calls`), in an order
 that goes ahead of the start, and the run, its start done, compiles the helper's last
 ones (:func:`help_while_waiting`), so that each loads from the cache what the other has
 compiled. One helper per cache: the first run that finds the cache without the loop
 takes a lock file and starts it, the others wait for it too.
 
-Files in the kernel cache folder (``_native._CACHE_DIR``), one pair per install:
+Files in the kernel cache folder (``_native._CACHE_DIR``), per install:
 ``loop-<key>.ready`` once the loop is in the cache, ``loop-<key>.lock`` (the helper's
-process id) while it compiles. Without a
-cache (``BEAMCONTACT_CACHE_DIR=""``) nothing of this runs.
+process id) while it compiles, ``loop-<key>.err`` (its error output) if it failed.
+Without a cache (``BEAMCONTACT_CACHE_DIR=""``) nothing of this runs.
 """
 
 import contextlib
@@ -46,6 +49,13 @@ def _names() -> tuple[str, str]:
     source = Path(__file__).resolve().parent / "dynamics" / "native_loop.py"
     key = hashlib.sha256(str(source).encode()).hexdigest()[:12]
     return f"loop-{key}.ready", f"loop-{key}.lock"
+
+
+def _errors(lock: Path) -> Path:
+    """The helper's error output, ``loop-<key>.err`` beside its lock; the helper removes
+    it when it has compiled the loop, so a file left there says why a helper failed (the
+    run then compiles the loop itself)."""
+    return lock.with_suffix(".err")
 
 
 def _files() -> tuple[Path, Path] | None:
@@ -84,14 +94,15 @@ def start_if_cold() -> None:
     except OSError:
         return None
     try:
-        _helper = subprocess.Popen([sys.executable, "-m", "beamcontact._warmup"],
-                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                   stderr=subprocess.DEVNULL,
-                                   env={**os.environ, _IN_HELPER: "1",
-                                        # this process's cache, whatever the environment
-                                        # says now
-                                        "BEAMCONTACT_CACHE_DIR":
-                                            str(_native._CACHE_DIR.parent.parent)})
+        with open(_errors(lock), "wb") as errors:
+            _helper = subprocess.Popen([sys.executable, "-m", "beamcontact._warmup"],
+                                       stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                       stderr=errors,
+                                       env={**os.environ, _IN_HELPER: "1",
+                                            # this process's cache, whatever the
+                                            # environment says now
+                                            "BEAMCONTACT_CACHE_DIR":
+                                                str(_native._CACHE_DIR.parent.parent)})
         os.write(fd, str(_helper.pid).encode())
     except OSError:
         lock.unlink(missing_ok=True)
@@ -121,9 +132,41 @@ def wait() -> None:
         time.sleep(0.2)
 
 
+# the helper's model: two clamped beams of one element with coarse-grained contact
+_BEAM = {"degree": 2, "elements": 1, "section": {"shape": "circle", "radius": 0.1},
+         "material": {"E": 1e6, "density": 1000.0}}
+TINY_CASE = {
+    "analysis": {"kind": "dynamic", "t_end": 1e-3, "dt": 1e-3},
+    "beams": [{**_BEAM, "name": "a", "line": {"start": [0.0, 0.0], "end": [1.0, 0.0]},
+               "supports": [{"at": "start", "type": "clamped"}]},
+              {**_BEAM, "name": "b", "line": {"start": [0.0, 0.25], "end": [1.0, 0.25]},
+               "supports": [{"at": "start", "type": "clamped"}]}],
+    "contact": {"model": "cg", "segments_per_element": 2}}
+
+
+def _splines_in_python() -> None:
+    """In the helper: the spline kernels as the Python functions they are compiled from.
+    The tiny model needs them for a handful of points, the loop calls none of them, and
+    the run compiles them at its start beside the helper; so the helper starts on the
+    loop's kernels at once instead of after the spline kernels (about 5 s, session 22).
+    Called before any module binds their names."""
+    from beamcontact.spline import basis_native, refine_native
+
+    kernels = {id(value): value.py_func for module in (basis_native, refine_native)
+               for value in vars(module).values()
+               if getattr(value, "__module__", None) == module.__name__
+               and hasattr(value, "py_func")}
+    for name, module in list(sys.modules.items()):  # the kernels and every name bound to one
+        if name.startswith("beamcontact."):
+            for attr, value in list(vars(module).items()):
+                if id(value) in kernels:
+                    setattr(module, attr, kernels[id(value)])
+
+
 def _compile_loop() -> None:
     """The helper: one step of a tiny model with coarse-grained contact, which compiles
     the loop (and the kernels it calls) into the cache."""
+    _splines_in_python()
     import numpy as np
 
     from beamcontact import enable_x64
@@ -136,16 +179,7 @@ def _compile_loop() -> None:
     from beamcontact.setup.start import prepare
 
     enable_x64()
-    beam = {"degree": 2, "elements": 1, "section": {"shape": "circle", "radius": 0.1},
-            "material": {"E": 1e6, "density": 1000.0}}
-    case = parse_case({
-        "analysis": {"kind": "dynamic", "t_end": 1e-3, "dt": 1e-3},
-        "beams": [{**beam, "name": "a", "line": {"start": [0.0, 0.0], "end": [1.0, 0.0]},
-                   "supports": [{"at": "start", "type": "clamped"}]},
-                  {**beam, "name": "b", "line": {"start": [0.0, 0.25], "end": [1.0, 0.25]},
-                   "supports": [{"at": "start", "type": "clamped"}]}],
-        "contact": {"model": "cg", "segments_per_element": 2}})
-    p = prepare(case)
+    p = prepare(parse_case(TINY_CASE))
     engine = NativeEngine(p.model, 0.0, p.options, p.length, 1e-3, p.contact)
     nm = engine.nm
     tangent = np.einsum("lk,lkd->ld", nm.load_dR, nm.x_ref[nm.load_conn])
@@ -235,6 +269,8 @@ if __name__ == "__main__":
     try:
         _compile_loop()
         loop_ready()
+        if _native._CACHE_DIR is not None:
+            _errors(_native._CACHE_DIR / _names()[1]).unlink(missing_ok=True)
     finally:
         if _native._CACHE_DIR is not None:
             (_native._CACHE_DIR / _names()[1]).unlink(missing_ok=True)

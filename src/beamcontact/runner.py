@@ -36,6 +36,7 @@ from beamcontact.setup.contact import obstacle_names
 from beamcontact.setup.start import (
     Prepared,
     choose_engine,
+    compile_loop_early,
     dynamic_start,
     prepare,
     static_engine,
@@ -149,6 +150,8 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     if restart and out_dir is None:
         raise CaseError("a restart needs the output folder of the run to continue")
     wall0 = time.perf_counter()
+    if case.analysis.kind == "dynamic":
+        compile_loop_early(case)
     prepared = prepare(case)
     model, disc, contact = prepared.model, prepared.disc, prepared.contact
     warnings = _start_warnings(prepared, restart)

@@ -130,7 +130,7 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
     with its residual in layout order (r_layout); returns (||r||, the contact energy at
     u, the strain energy at u)."""
     e_strain = nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
-                                        t_n, r, r_pot, k_blocks)
+                                        t_n, r, r_pot, k_blocks, True)
     # without contact blocks no entry couples the band's beam with the border
     coupled = contact[2].shape[0] > 0
     bordered.zero(band, B, C, D, coupled)

@@ -109,6 +109,22 @@ def static_engine(prepared: Prepared):
     return JaxStatics(prepared.model, contact, prepared.options, prepared.length)
 
 
+def compile_loop_early(case: Case) -> None:
+    """Before the model of a dynamic case is built: if the native engine will run it and
+    the kernel cache lacks the compiled time loop, start the helper that compiles it
+    (beamcontact/_warmup.py), so that it works beside the whole start of the run, the
+    spline kernels that build the model included. A case that the native engine cannot
+    run starts nothing (its error comes with the start of the run)."""
+    try:
+        native = choose_engine(case)[0] == "native"
+    except CaseError:
+        return
+    if native:
+        from beamcontact import _warmup
+
+        _warmup.start_if_cold()
+
+
 def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
     """The engine (:func:`choose_engine`), the step control and the state at t = 0 of a
     dynamic case: zero displacements, the beams' initial velocities, consistent
