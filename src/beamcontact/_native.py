@@ -194,8 +194,9 @@ def _optimise_outermost_only() -> bool:
 
     Numba compiles a kernel's callees first, each into a library of its own that it
     optimises whole, then links them into the caller's library and optimises that whole
-    again, so a kernel five calls deep is optimised five times: with empty caches that was
-    34 s of the 85 s that the bundled benchmark compiled on one core (session 22). Only the
+    again, so a kernel five calls deep is optimised five times: with empty caches, the
+    bundled benchmark compiled 85 s on one core, 59 s without the repeats (session 22,
+    benchmarks/README.md). Only the
     outermost library's code runs when the caller is compiled code (the callees are linked
     into it and optimised there, with everything inlined), so a library of ours compiled
     inside another compile keeps Numba's per-function passes and skips the module passes.
