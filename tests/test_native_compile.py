@@ -30,19 +30,24 @@ _KERNELS = '''
 import numpy as np
 from beamcontact import _native
 
-@_native.njit
+# the hooks of _native act on kernels of this package
+def ours(func):
+    func.__module__ = "beamcontact.test_kernels"
+    return _native.njit(func)
+
+@ours
 def scaled(x, twice):
     return 2.0 * x if twice else x
 
-@_native.njit
+@ours
 def with_constant(x):
     return scaled(x, False) + scaled(x, True)
 
-@_native.njit
+@ours
 def with_variable(x, twice):
     return scaled(x, twice)
 
-@_native.njit
+@ours
 def terms(x):
     # a sum whose value depends on the order of its terms and a product-sum that a
     # fused multiply-add would round once instead of twice
@@ -51,9 +56,13 @@ def terms(x):
         s += x[i] * x[x.shape[0] - 1 - i] + 1e-17 * i
     return s
 
-@_native.njit
+@ours
 def outer(x):
     return terms(x)
+
+@ours
+def other(x):
+    return 2.0 * terms(x)
 '''
 
 
@@ -69,16 +78,49 @@ def test_a_constant_argument_compiles_the_kernel_once():
 
 def test_a_kernel_compiled_inside_another_computes_as_python():
     """``terms`` compiled first inside ``outer`` (its library then skips LLVM's module
-    passes, _native._optimise_outermost_only) and then called from Python: both give
-    Python's float64 result bit for bit, so no pass reordered or fused the arithmetic."""
+    passes, _native._optimise_outermost_only; ``outer``'s runs them) and then called from
+    Python: both give Python's float64 result bit for bit, so no pass reordered or fused
+    the arithmetic."""
     out = _python(_KERNELS + '''
 rng = np.random.default_rng(3)
 x = rng.standard_normal(257) * 10.0 ** rng.integers(-8, 8, 257)
-print(_native.OPTIMISE_OUTERMOST_ONLY, outer(x).hex(), terms(x).hex(), terms.py_func(x).hex())
+before = dict(_native.MODULE_PASSES)
+via_outer = outer(x)
+after = _native.MODULE_PASSES
+print(_native.OPTIMISE_OUTERMOST_ONLY, after["skipped"] - before["skipped"],
+      after["run"] - before["run"], via_outer.hex(), terms(x).hex(), terms.py_func(x).hex())
 ''')
-    hooked, via_outer, direct, python = out.split()
+    hooked, skipped, run, via_outer, direct, python = out.split()
     assert hooked == "True"  # with the Numba this package supports, the hook is in place
+    assert int(skipped) >= 1 and int(run) >= 1, out  # terms' library skipped, outer's ran
     assert via_outer == direct == python
+
+
+def test_a_kernel_compiled_inside_another_is_compiled_whole_for_python(tmp_path):
+    """The less optimised library of ``terms`` compiled inside ``outer`` goes to the disk
+    cache marked partial (_native._cached_whole): the next compile that calls ``terms``
+    (``other``) links it from there, but the next call of ``terms`` from Python compiles
+    it whole (a cache miss) and caches that, which later calls load."""
+    # a module of the package, as Numba's cache finds a kernel's module again by name
+    (tmp_path / "test_kernels.py").write_text(_KERNELS)
+    cache = str(tmp_path / "cache")
+
+    def run(call: str, count: str) -> str:
+        """Call kernel ``call`` in a new process; the cache hits and misses of ``count``."""
+        return _python(
+            f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
+            "import numpy as np; import beamcontact.test_kernels as k; "
+            f"k.{call}(np.arange(5.0)); "
+            f"print(sum(k.{count}.stats.cache_hits.values()), "
+            f"sum(k.{count}.stats.cache_misses.values()))", cache)
+
+    assert run("outer", "outer") == "0 1"
+    assert any(p.name.startswith("partial-") for p in (tmp_path / "cache").rglob("*"))
+    assert run("other", "terms") == "1 0"  # linked from the cache into other
+    assert run("terms", "terms") == "0 1"  # compiled whole for Python
+    assert run("terms", "terms") == "1 0"
+    assert not any(p.name.startswith("partial-") for p in (tmp_path / "cache").rglob("*"))
+    assert run("outer", "outer") == "1 0"
 
 
 # the helper's model, built in a process whose spline kernels run as Python, into the
@@ -117,4 +159,8 @@ def test_the_helper_builds_its_model_with_python_splines(tmp_path):
     leaves = jax.tree_util.tree_leaves((p.model, p.contact.elements))
     assert len(leaves) == len(helper.files) - 1
     for k, leaf in enumerate(leaves):
-        np.testing.assert_array_equal(helper[f"arr_{k}"], np.asarray(leaf))
+        ours, compiled = helper[f"arr_{k}"], np.asarray(leaf)
+        # the same values, dtype and layout (Numba compiles a kernel again for another)
+        np.testing.assert_array_equal(ours, compiled)
+        assert ours.dtype == compiled.dtype and ours.flags.c_contiguous == \
+            compiled.flags.c_contiguous

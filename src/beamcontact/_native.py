@@ -17,6 +17,7 @@ the GIL released so that threads can run kernels side by side.
 Importing this module imports neither JAX nor matplotlib.
 """
 
+import contextlib
 import hashlib
 import os
 import shutil
@@ -187,6 +188,13 @@ class CoreShare:
 prange = numba.prange
 
 
+# libraries of this process whose module passes ran, and those that skipped them
+# (:func:`_optimise_outermost_only`)
+MODULE_PASSES = {"run": 0, "skipped": 0}
+# per compile in progress, innermost last: is the function compiled ours?
+_COMPILING: list[bool] = []
+
+
 def _optimise_outermost_only() -> bool:
     """Run LLVM's module optimisation only on the code of a compile that Python asked for,
     not again on each kernel that it compiles on the way (docs/engines.md,
@@ -196,24 +204,27 @@ def _optimise_outermost_only() -> bool:
     optimises whole, then links them into the caller's library and optimises that whole
     again, so a kernel five calls deep is optimised five times: with empty caches, the
     bundled benchmark compiled 85 s on one core, 59 s without the repeats (session 22,
-    benchmarks/README.md). Only the
-    outermost library's code runs when the caller is compiled code (the callees are linked
-    into it and optimised there, with everything inlined), so a library of ours compiled
-    inside another compile keeps Numba's per-function passes and skips the module passes.
-    The arithmetic is unchanged, float for float: no fast-math, and LLVM keeps IEEE
-    semantics at every level, so the results are the same bit for bit (tested against
-    the JAX engine and the recorded histories as before). A kernel first compiled inside
-    another and later called from Python runs that less optimised code; the entry points
-    of the engine are called from Python first. Libraries of other packages are left as
-    Numba makes them. Without the Numba internals this relies on (``numba.core.event``'s
-    compile events, ``CPUCodeLibrary._optimize_final_module``), nothing changes."""
+    benchmarks/README.md). Only the outermost library's code runs when the caller is
+    compiled code (the callees are linked into it and optimised there, with everything
+    inlined), so the libraries made while one of our kernels is compiled inside another
+    compile (the kernel's own, and Numba's pieces of it: parallel loops, inlined
+    subroutines) keep Numba's per-function passes and skip the module passes. Such a
+    library is marked, and so is its entry in the disk cache (:func:`_cached_whole`):
+    another compile links it from there, but a later process that calls the kernel from
+    Python compiles it whole instead. In the process that compiled it, a Python call of
+    that kernel runs the less optimised code. The arithmetic is unchanged, float for
+    float: no fast-math, and LLVM keeps IEEE semantics at every level, so the results
+    are the same bit for bit (tests/test_native_compile.py; the histories, as before).
+    Kernels of other packages compiled outside ours are left as Numba makes them.
+    Without the Numba internals this relies on (``numba.core.event``'s compile events,
+    ``CPUCodeLibrary._optimize_final_module``), nothing changes."""
     try:
         from numba.core import codegen, event
         library_class = codegen.CPUCodeLibrary
         optimise = library_class._optimize_final_module
     except (ImportError, AttributeError):
         return False
-    compiling: list[bool] = []  # per compile in progress: is the function ours?
+    compiling = _COMPILING
 
     class _Compiles(event.Listener):
         def on_start(self, ev):
@@ -227,7 +238,10 @@ def _optimise_outermost_only() -> bool:
 
     def optimise_outermost(library):
         if len(compiling) > 1 and compiling[-1]:
+            library.module_passes_skipped = True
+            MODULE_PASSES["skipped"] += 1
             return
+        MODULE_PASSES["run"] += 1
         optimise(library)
 
     event.register("numba:compile", _Compiles())
@@ -262,18 +276,61 @@ def _typed_without_constants(dispatcher):
     return dispatcher
 
 
+def _cached_whole(dispatcher):
+    """``dispatcher``, whose compiled versions that skipped LLVM's module passes
+    (:func:`_optimise_outermost_only`) are loaded from the disk cache only into another
+    compile, never for a call from Python.
+
+    Such a version is written to the cache as any other, and a file
+    ``partial-<key>`` beside it says that it is partial; a version compiled whole for
+    the same signature replaces it and removes the file. A call from Python (no compile in
+    progress) that would load a partial version compiles the kernel whole instead (and
+    caches that); a compile that links the kernel loads it, since it optimises what it
+    links. So the two processes of a cold start (beamcontact/_warmup.py) share every
+    kernel through the cache, and a later Python call runs optimised code."""
+    cache = getattr(dispatcher, "_cache", None)
+    save = getattr(cache, "save_overload", None)
+    load = getattr(cache, "load_overload", None)
+    if _CACHE_DIR is None or save is None or load is None:
+        return dispatcher
+    name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
+
+    def partial_file(signature) -> Path:
+        key = hashlib.sha256(f"{name}{signature}".encode()).hexdigest()[:24]
+        return _CACHE_DIR / f"partial-{key}"
+
+    def save_marked(signature, result):
+        save(signature, result)
+        library = getattr(result, "library", None)
+        with contextlib.suppress(OSError):
+            if getattr(library, "module_passes_skipped", False):
+                partial_file(signature).touch()
+            else:
+                partial_file(signature).unlink(missing_ok=True)
+
+    def load_whole_for_python(signature, target_context):
+        if not _COMPILING and partial_file(signature).exists():
+            return None  # a call from Python: compile it whole
+        return load(signature, target_context)
+
+    cache.save_overload = save_marked
+    cache.load_overload = load_whole_for_python
+    return dispatcher
+
+
 def _compiled(func, **options):
     """``numba.njit(func, **options)`` with the project's options and its on-disk cache
     (compiled anew each process when the cache is off), compiled for plain argument
-    types (:func:`_typed_without_constants`)."""
+    types (:func:`_typed_without_constants`), loaded for Python only when compiled whole
+    (:func:`_cached_whole`)."""
     if _CACHE_DIR is None:
         return _typed_without_constants(numba.njit(func, cache=False, **options,
                                                    **_OPTIONS))
     saved = numba.config.CACHE_DIR
     numba.config.CACHE_DIR = str(_CACHE_DIR)
     try:
-        return _typed_without_constants(numba.njit(func, cache=True, **options,
-                                                   **_OPTIONS))
+        return _cached_whole(_typed_without_constants(
+            numba.njit(func, cache=True, **options, **_OPTIONS)))
     finally:
         numba.config.CACHE_DIR = saved
 

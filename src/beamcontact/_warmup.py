@@ -106,6 +106,7 @@ def start_if_cold() -> None:
         os.write(fd, str(_helper.pid).encode())
     except OSError:
         lock.unlink(missing_ok=True)
+        _errors(lock).unlink(missing_ok=True)
     finally:
         os.close(fd)
 

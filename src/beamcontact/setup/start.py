@@ -114,7 +114,9 @@ def compile_loop_early(case: Case) -> None:
     the kernel cache lacks the compiled time loop, start the helper that compiles it
     (beamcontact/_warmup.py), so that it works beside the whole start of the run, the
     spline kernels that build the model included. A case that the native engine cannot
-    run starts nothing (its error comes with the start of the run)."""
+    run with its case file's laws starts nothing (its error comes with the start of the
+    run). A run that stops on an error in its model leaves the helper to finish filling
+    the cache (under a minute), which the next run then finds."""
     try:
         native = choose_engine(case)[0] == "native"
     except CaseError:
