@@ -224,20 +224,19 @@ def _optimise_outermost_only() -> bool:
         optimise = library_class._optimize_final_module
     except (ImportError, AttributeError):
         return False
-    compiling = _COMPILING
 
     class _Compiles(event.Listener):
         def on_start(self, ev):
             dispatcher = ev.data.get("dispatcher")
             module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
-            compiling.append(module.startswith("beamcontact."))
+            _COMPILING.append(module.startswith("beamcontact."))
 
         def on_end(self, ev):
-            if compiling:
-                compiling.pop()
+            if _COMPILING:
+                _COMPILING.pop()
 
     def optimise_outermost(library):
-        if len(compiling) > 1 and compiling[-1]:
+        if len(_COMPILING) > 1 and _COMPILING[-1]:
             library.module_passes_skipped = True
             MODULE_PASSES["skipped"] += 1
             return
@@ -291,7 +290,7 @@ def _cached_whole(dispatcher):
     cache = getattr(dispatcher, "_cache", None)
     save = getattr(cache, "save_overload", None)
     load = getattr(cache, "load_overload", None)
-    if _CACHE_DIR is None or save is None or load is None:
+    if save is None or load is None:
         return dispatcher
     name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
 

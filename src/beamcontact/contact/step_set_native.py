@@ -877,9 +877,9 @@ def _blocks_missed(first, missing, gap, pairs, P, near, frozen, radius, interact
         if c != first:
             # prange counts in uint64: the index as the serial call passes it, so that
             # the kernel is compiled once
-            flags[c], gaps[c] = _block_missed(np.int64(c), missing, gap, pairs, P, near, frozen,
-                                              radius, interaction, beam, allowed, s,
-                                              exclusion)
+            flags[c], gaps[c] = _block_missed(np.int64(c), missing, gap, pairs, P, near,
+                                              frozen, radius, interaction, beam, allowed,
+                                              s, exclusion)
     return flags, gaps
 
 

@@ -113,10 +113,12 @@ def compile_loop_early(case: Case) -> None:
     """Before the model of a dynamic case is built: if the native engine will run it and
     the kernel cache lacks the compiled time loop, start the helper that compiles it
     (beamcontact/_warmup.py), so that it works beside the whole start of the run, the
-    spline kernels that build the model included. A case that the native engine cannot
-    run with its case file's laws starts nothing (its error comes with the start of the
-    run). A run that stops on an error in its model leaves the helper to finish filling
-    the cache (under a minute), which the next run then finds."""
+    spline kernels that build the model included (runner.py calls it for every dynamic
+    run; :func:`dynamic_start` alone compiles the loop at its first call). A case that
+    the native engine cannot run with its case file's laws starts nothing (its error
+    comes with the start of the run). A run that stops on an error in its model leaves
+    the helper to finish filling the cache (under a minute), which the next run then
+    finds."""
     try:
         native = choose_engine(case)[0] == "native"
     except CaseError:
@@ -140,10 +142,7 @@ def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
     v0 = uniform_velocities(prepared.disc, [b.initial_velocity for b in case.beams])
     name, _ = choose_engine(case, None if contact is None else contact.law)
     if name == "native":
-        from beamcontact import _warmup
         from beamcontact.dynamics.native_step import NativeEngine
-
-        _warmup.start_if_cold()  # the time loop compiles beside the start, if not cached
 
         engine = NativeEngine(model, an.alpha, prepared.options, prepared.length, an.dt,
                               contact)
