@@ -45,7 +45,7 @@ def test_dynamic_outputs(tmp_path):
     np.testing.assert_allclose(np.diff(h["t"])[1:], h["dt"][2:], rtol=1e-9)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "completed" and summary["steps"] == 100
-    assert summary["compile_time_s"] > 0 and summary["wall_time_s"] > 0
+    assert 0 < summary["compile_time_s"] < summary["wall_time_s"]
     assert summary["newton_iterations"] == int(h["newton_iters"].sum())
     # VTU every vtk_interval = 0.01 s: t = 0, 0.01, ..., 0.1
     assert (out / "beams.pvd").read_text().count("<DataSet") == 11

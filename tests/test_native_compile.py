@@ -1,7 +1,8 @@
 """How the native kernels are compiled (beamcontact/_native.py, beamcontact/_warmup.py;
 docs/engines.md, "Compilation"): a constant argument compiles no second kernel, a kernel
-compiled inside another keeps IEEE arithmetic, and the helper that compiles the time
-loop builds its model with the spline kernels run as Python, to the same numbers.
+compiled inside another keeps IEEE arithmetic, the time of compiles is measured, and the
+helper that compiles the time loop builds its model with the spline kernels run as
+Python, to the same numbers.
 
 Each check runs in a fresh process with the kernel cache off, so that what it counts is
 compiled there and then."""
@@ -95,6 +96,31 @@ print(_native.OPTIMISE_OUTERMOST_ONLY, after["skipped"] - before["skipped"],
     assert int(skipped) >= 1 and int(run) >= 1, out  # terms' library skipped, outer's ran
     assert via_outer == direct == python
 
+
+
+def test_the_compile_clock_counts_compiles_only():
+    """``_native.compile_seconds`` grows by the wall time of a compile (the outermost of
+    a nest, counted once: ``outer`` compiles ``terms`` inside it) and not at all by a
+    call of compiled code; a Stopwatch splits its wall time into the two (the summary's
+    ``compile_time_s``, runner.py)."""
+    out = _python(_KERNELS + '''
+import time
+x = np.arange(4.0)
+watch = _native.Stopwatch()
+t0, c0 = time.perf_counter(), _native.compile_seconds()
+outer(x)
+wall, spent = time.perf_counter() - t0, _native.compile_seconds() - c0
+c1 = _native.compile_seconds()
+for _ in range(1000):
+    outer(x)
+print(wall, spent, _native.compile_seconds() - c1, watch.compiles(), watch.outside_compiles(),
+      time.perf_counter() - watch.wall)
+''')
+    wall, spent, calls, compiles, outside, total = map(float, out.split())
+    assert 0.5 * wall < spent <= wall  # a compile is most of a first call
+    assert calls == 0.0
+    assert compiles >= spent and outside >= 0.0
+    assert abs(compiles + outside - total) < 1e-3
 
 def test_a_kernel_compiled_inside_another_is_compiled_whole_for_python(tmp_path):
     """The less optimised library of ``terms`` compiled inside ``outer`` goes to the disk

@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 import numba
+import numba.core.event
 import numba.extending
 
 from beamcontact._cache import cache_dir
@@ -88,6 +89,56 @@ def _remove_stale(current: Path) -> None:
             continue
         if stale:
             shutil.rmtree(folder, ignore_errors=True)
+
+
+
+
+class _CompileClock(numba.core.event.Listener):
+    """Times the outermost compile of each nest of Numba's compile events (a kernel's
+    callees compile inside it). Loading compiled kernels from the disk cache is not a
+    compile."""
+
+    def __init__(self) -> None:
+        self.total, self.depth, self.since = 0.0, 0, 0.0
+
+    def on_start(self, ev) -> None:
+        if self.depth == 0:
+            self.since = time.perf_counter()
+        self.depth += 1
+
+    def on_end(self, ev) -> None:
+        self.depth -= 1
+        if self.depth == 0:
+            self.total += time.perf_counter() - self.since
+
+
+_CLOCK = _CompileClock()
+numba.core.event.register("numba:compile", _CLOCK)
+
+
+def compile_seconds() -> float:
+    """The wall seconds this process has spent in Numba's compiles so far (one in
+    progress included)."""
+    running = time.perf_counter() - _CLOCK.since if _CLOCK.depth else 0.0
+    return _CLOCK.total + running
+
+
+class Stopwatch:
+    """Wall seconds since it was made, and how many of them went to Numba's compiles
+    (:func:`compile_seconds`): a run's compile time is its compiles plus what its first
+    attempt spent outside them (the JAX engine tracing and compiling with XLA, the native
+    engine waiting for the helper that compiles its loop)."""
+
+    def __init__(self) -> None:
+        self.wall, self.compiled = time.perf_counter(), compile_seconds()
+
+    def compiles(self) -> float:
+        """Seconds of Numba's compiles since the start."""
+        return compile_seconds() - self.compiled
+
+    def outside_compiles(self) -> float:
+        """Wall seconds since the start, less those of Numba's compiles."""
+        return time.perf_counter() - self.wall - self.compiles()
 
 
 _CACHE_DIR = _numba_cache_dir()

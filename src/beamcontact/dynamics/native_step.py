@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from beamcontact._native import CoreShare, njit
+from beamcontact._native import CoreShare, Stopwatch, njit
 from beamcontact.assembly import native_model as nmod
 from beamcontact.assembly.model import LoadState
 from beamcontact.contact import blocks_native
@@ -596,18 +596,18 @@ class NativeEngine:
         """Run the time loop from ``state`` and the controller's state ``ctl`` to
         limits.t_end or a stop (dynamics/driver.py, :class:`~beamcontact.dynamics.
         driver.Engine`): calls of the compiled loop of about CALL_SECONDS each (the
-        first makes one attempt: its time, with the wait for a helper compiling the loop
-        into an empty cache, is the compile time), every accepted step emitted in order
-        after each call, also when the call is interrupted. Returns (the last accepted
-        state, the stopping attempt or None, the compile time)."""
+        first makes one attempt), every accepted step emitted in order after each call,
+        also when the call is interrupted. Returns (the last accepted state, the stopping
+        attempt or None, the seconds until the first call returned that were not Numba's
+        compiles: the wait for a helper compiling the loop into an empty cache, loading
+        the loop, one attempt)."""
         from beamcontact import _warmup
         from beamcontact.dynamics import native_loop
 
         s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
-        waited = time.perf_counter()
+        watch = Stopwatch()
         _warmup.help_while_waiting(self, s)
         _warmup.wait()  # a helper compiling the loop into an empty cache
-        waited = time.perf_counter() - waited
         u, v, a, f_pot = (np.array(x, dtype=np.float64) for x in (s.u, s.v, s.a, s.f_pot))
         theta = np.array(s.load_state.theta, dtype=np.float64)
         tangent = np.array(s.load_state.tangent, dtype=np.float64)
@@ -648,7 +648,7 @@ class NativeEngine:
                          out[7][:k], out[8][:k])
             seconds = time.perf_counter() - t0
             if first_s is None:
-                first_s = waited + seconds  # the compilation of the loop, wherever
+                first_s = watch.outside_compiles()  # waiting for the helper, loading
                 _warmup.loop_ready()
             last = DynState(float(ctl[T]), u, v, a, f_pot,
                             LoadState(theta=theta, tangent=tangent))
