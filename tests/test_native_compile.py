@@ -1,8 +1,8 @@
 """How the native kernels are compiled (beamcontact/_native.py, beamcontact/_warmup.py;
 docs/engines.md, "Compilation"): a constant argument compiles no second kernel, a kernel
-compiled inside another keeps IEEE arithmetic, the time of compiles is measured, and the
-helper that compiles the time loop builds its model with the spline kernels run as
-Python, to the same numbers.
+compiled inside another keeps IEEE arithmetic, the time of compiles is measured, a kernel
+loads from the cache without parsing its LLVM bitcode, and the helper that compiles the
+time loop builds its model with the spline kernels run as Python, to the same numbers.
 
 Each check runs in a fresh process with the kernel cache off, so that what it counts is
 compiled there and then."""
@@ -148,6 +148,63 @@ def test_a_kernel_compiled_inside_another_is_compiled_whole_for_python(tmp_path)
     assert not any(p.name.startswith("partial-") for p in (tmp_path / "cache").rglob("*"))
     assert run("outer", "outer") == "1 0"
 
+
+
+def test_a_kernel_loads_from_the_cache_without_parsing_its_bitcode(tmp_path):
+    """A kernel loaded from the disk cache for a call from Python keeps the LLVM bitcode
+    stored with it unparsed (_native._load_without_bitcode): the JIT knows the symbols of
+    its machine code from the object file's symbol table, exactly those the bitcode
+    exports; a compile that links the kernel (``other`` calls ``terms``) parses the
+    bitcode then. Every result is Python's, bit for bit."""
+    (tmp_path / "test_kernels.py").write_text(_KERNELS)
+    cache = str(tmp_path / "cache")
+    prelude = (f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
+               "import numpy as np; import beamcontact.test_kernels as k; "
+               "from beamcontact import _native; x = np.arange(5.0) / 3.0\n")
+    _python(prelude + "k.terms(x)", cache)  # compiled whole and cached
+    out = _python(prelude + '''
+from llvmlite import binding
+from numba.core.registry import cpu_target
+loaded = k.terms(x)
+library = k.terms.overloads[k.terms.signatures[0]].library
+unparsed = library.bitcode_unparsed is not None
+module = binding.parse_bitcode(library.bitcode_unparsed)
+L = binding.Linkage
+exported = {v.name for vs in (module.functions, module.global_variables) for v in vs
+            if not v.is_declaration and v.linkage not in (L.internal, L.private)}
+engine = cpu_target.target_context.codegen()._engine
+known = all(engine.is_symbol_defined(name) for name in exported)
+linked = k.other(x)
+print(_native.LOAD_WITHOUT_BITCODE, sum(k.terms.stats.cache_hits.values()), unparsed,
+      len(exported) > 0 and known, library.bitcode_unparsed is None, loaded.hex(),
+      (0.5 * linked).hex(), k.terms.py_func(x).hex())
+''', cache)
+    hooked, hits, unparsed, known, parsed, loaded, linked, python = out.split()
+    assert (hooked, hits, unparsed, known, parsed) == ("True", "1", "True", "True", "True")
+    assert loaded == linked == python
+
+
+def test_the_symbols_of_an_object_file_are_those_its_bitcode_exports():
+    """_native.elf_global_symbols of a compiled library's machine code: the global and weak
+    symbols, the very names its LLVM module defines without internal or private
+    linkage (what Numba's own load lists from the bitcode, less the names no JIT lookup
+    can resolve)."""
+    from llvmlite import binding
+
+    from beamcontact import _native
+
+    x = np.arange(6.0)
+    kernel = _native.njit(lambda a: np.sort(a)[::-1].copy())
+    kernel(x)
+    library = kernel.overloads[kernel.signatures[0]].library
+    _, kind, (object_code, bitcode) = library.serialize_using_object_code()
+    module = binding.parse_bitcode(bitcode)
+    L = binding.Linkage
+    exported = {v.name for vs in (module.functions, module.global_variables) for v in vs
+                if not v.is_declaration and v.linkage not in (L.internal, L.private)}
+    assert kind == "object" and len(exported) > 2
+    assert _native.elf_global_symbols(object_code) == exported
+    assert _native.elf_global_symbols(b"\xcf\xfa\xed\xfe" + object_code[4:]) is None
 
 # the helper's model, built in a process whose spline kernels run as Python, into the
 # file argv[1]
