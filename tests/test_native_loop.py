@@ -80,6 +80,45 @@ def test_compiled_loop_makes_the_host_loops_steps(variant):
     assert max(r.diagnostics["E_contact"] for r in rows) > 0.0  # contact acted
 
 
+class LoopLater:
+    """A native engine whose compiled loop is "being compiled" (``loop_compiling``) for
+    its first ``attempts`` attempts, as by the helper of a cold run: the driver makes
+    those with its host loop, then the compiled loop goes on from there."""
+
+    def __init__(self, engine, attempts: int):
+        self._engine, self.attempts, self.looks = engine, attempts, 0
+        self.name, self.contact, self.runs_loop = engine.name, engine.contact, True
+
+    def loop_compiling(self, state) -> bool:
+        self.looks += 1
+        return self.looks <= self.attempts
+
+    def __getattr__(self, name):
+        return getattr(self._engine, name)
+
+
+def test_steps_made_while_the_loop_compiles_are_the_loops_own():
+    """A run whose first 300 attempts come from the host loop (dynamics/driver.py,
+    ``_compiled_loop``: a cold run while its helper compiles the loop) and the rest from
+    the compiled loop, through the first impact: the same steps, states and rejections
+    as the compiled loop's alone, bit for bit."""
+    raw = _drop("cg", 0.8)
+    ref, ref_rows = _solve(raw, host=False)
+    start = dynamic_start(prepare(parse_case(raw)))
+    engine = LoopLater(start.engine, 300)
+    rows = []
+    res = solve_dynamic(engine, start.state, 0.8, start.prepared.length, start.control,
+                        on_step=rows.append)
+    assert res.status == "completed", res.message
+    assert engine.looks == 301 and res.steps > 300  # both loops made steps
+    assert (ref.steps, ref.iterations, ref.cutbacks, ref.rejections) == \
+        (res.steps, res.iterations, res.cutbacks, res.rejections)
+    for a, b in zip(ref_rows, rows, strict=True):
+        assert (a.t, a.dt, a.dt_next, a.iterations, a.diagnostics) == \
+            (b.t, b.dt, b.dt_next, b.iterations, b.diagnostics)
+        assert np.array_equal(a.state.u, b.state.u) and np.array_equal(a.state.v, b.state.v)
+
+
 def test_interrupt_inside_the_compiled_loop_keeps_every_accepted_step():
     """Ctrl-C (SIGINT's KeyboardInterrupt, raised from another thread while the compiled
     loop runs) after some steps: every step accepted until then reaches on_step, in

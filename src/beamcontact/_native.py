@@ -179,6 +179,12 @@ def single_thread() -> None:
     numba.set_num_threads(1)
 
 
+def set_threads(count: int | None) -> None:
+    """Run the parallel kernels on ``count`` threads from now on (None: the most this
+    process may use, :func:`single_thread` or ``NUMBA_NUM_THREADS``)."""
+    numba.set_num_threads(_most_threads if count is None else min(count, _most_threads))
+
+
 def _cpu_sample() -> tuple[float, float, float] | None:
     """(wall clock, CPU seconds spent by all processes on the cores this process may use,
     CPU seconds of this process), or None where /proc/stat cannot be read."""
@@ -399,6 +405,20 @@ def _typed_without_constants(dispatcher):
     return dispatcher
 
 
+# set by :func:`load_partial_for_python`
+_PARTIAL_FOR_PYTHON: list[bool] = []
+
+
+def load_partial_for_python() -> None:
+    """From now on in this process, a call from Python loads a kernel's partial version
+    from the cache as it is (:func:`_cached_whole`) instead of compiling it whole: for
+    the steps a cold run makes while a helper compiles the time loop
+    (beamcontact/_warmup.py), with the attempt the helper compiled inside another
+    compile. As fast there: the bundled benchmark's steps from the driver's host loop
+    took 9.5 s with the partial attempt and 9.6 s with one compiled whole (session 23)."""
+    _PARTIAL_FOR_PYTHON[:] = [True]
+
+
 def _cached_whole(dispatcher):
     """``dispatcher``, whose compiled versions that skipped LLVM's module passes
     (:func:`_optimise_outermost_only`) are loaded from the disk cache only into another
@@ -432,7 +452,7 @@ def _cached_whole(dispatcher):
                 partial_file(signature).unlink(missing_ok=True)
 
     def load_whole_for_python(signature, target_context):
-        if not _COMPILING and partial_file(signature).exists():
+        if not _COMPILING and not _PARTIAL_FOR_PYTHON and partial_file(signature).exists():
             return None  # a call from Python: compile it whole
         return load(signature, target_context)
 

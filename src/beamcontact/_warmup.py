@@ -14,12 +14,16 @@ does not wait for the spline kernels. The two share kernels: the
 helper compiles the loop's kernels one by one first (:func:`_kernel_calls`), in an order
 that goes ahead of the start, and the run, its start done, compiles the helper's last
 ones (:func:`help_while_waiting`), so that each loads from the cache what the other has
-compiled. One helper per cache: the first run that finds the cache without the loop
-takes a lock file and starts it, the others wait for it too.
+compiled. Once the helper has stored the attempt, a run makes its steps without the
+loop until the loop is ready (:func:`steps_meanwhile`; dynamics/driver.py,
+``_compiled_loop``), so a short run may end before its helper, which then finishes in
+the background. One helper per cache: the first run that finds the cache without the
+loop takes a lock file and starts it, the others wait for it too.
 
 Files in the kernel cache folder (``_native._CACHE_DIR``), per install:
 ``loop-<key>.ready`` once the loop is in the cache, ``loop-<key>.lock`` (the helper's
-process id) while it compiles, ``loop-<key>.err`` (its error output) if it failed.
+process id) while it compiles, ``loop-<key>.steps`` once it has stored the attempt,
+``loop-<key>.err`` (its error output) if it failed.
 Without a cache (``BEAMCONTACT_CACHE_DIR=""``) nothing of this runs.
 """
 
@@ -66,6 +70,52 @@ def _files() -> tuple[Path, Path] | None:
     return folder / ready, folder / lock
 
 
+def _steps_mark(ready: Path) -> Path:
+    """``loop-<key>.steps`` beside the ready mark: the helper has stored the kernels of
+    an attempt (all of :func:`_kernel_calls` but the run's share), so that a run can
+    make its steps without the loop until the loop is ready."""
+    return ready.with_suffix(".steps")
+
+
+def _helper_works(lock: Path) -> bool:
+    """Whether a helper is compiling the loop: this process's, still running, or
+    another run's, whose lock is there and names a live process. (A helper outlives a
+    run that finished its steps without the loop, and a closed terminal may kill it
+    without its cleanup: its lock must not make the next run wait.)"""
+    if _helper is not None:
+        return _helper.poll() is None
+    try:
+        pid = int(lock.read_text())
+    except FileNotFoundError:
+        return False
+    except (OSError, ValueError):
+        return True  # its starter is writing the process id
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True  # alive, another user's
+    return True
+
+
+def steps_meanwhile() -> bool:
+    """Whether a run should make its steps without the compiled loop, from the attempts
+    of its engine, because a helper is compiling the loop and has stored the attempt:
+    True until the loop is ready (then the run loads it) or the helper is gone. Waits,
+    at most GIVE_UP_S, until the helper has stored either."""
+    files = _files()
+    if files is None:
+        return False
+    ready, lock = files
+    steps = _steps_mark(ready)
+    deadline = time.monotonic() + GIVE_UP_S
+    while (not ready.exists() and not steps.exists() and _helper_works(lock)
+           and time.monotonic() < deadline):
+        time.sleep(0.05)
+    return not ready.exists() and steps.exists() and _helper_works(lock)
+
+
 def loop_ready() -> None:
     """Mark the loop as compiled into the cache (after its first call in any process)."""
     folder = _native._CACHE_DIR
@@ -83,9 +133,10 @@ def start_if_cold() -> None:
     lock = files[1]
     try:
         fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        _steps_mark(files[0]).unlink(missing_ok=True)  # left by a helper that died
     except FileExistsError:
         try:
-            if time.time() - lock.stat().st_mtime < GIVE_UP_S:
+            if time.time() - lock.stat().st_mtime < GIVE_UP_S and _helper_works(lock):
                 return None  # another run's helper compiles it
             lock.unlink()  # left by a helper that died
         except OSError:
@@ -129,7 +180,7 @@ def wait() -> None:
         lock.unlink(missing_ok=True)
         return
     deadline = time.monotonic() + GIVE_UP_S
-    while lock.exists() and not ready.exists() and time.monotonic() < deadline:
+    while _helper_works(lock) and not ready.exists() and time.monotonic() < deadline:
         time.sleep(0.2)
 
 
@@ -189,7 +240,12 @@ def _compile_loop() -> None:
                      LoadState(theta=np.zeros(tangent.shape[0]), tangent=tangent))
     account = EnergyAccount(0.0, 0.0, dict.fromkeys(DIAGNOSTICS, 0.0))
     limits = Limits.of(StepControl(1e-3, 1e-9), 1e-3, p.length, p.contact.max_penetration)
-    for call in _kernel_calls(engine, state):
+    calls = _kernel_calls(engine, state)
+    for call in calls[:-RUN_HELPS]:
+        call()
+    if _native._CACHE_DIR is not None:  # a run may step without the loop from now on
+        _steps_mark(_native._CACHE_DIR / _names()[0]).touch()
+    for call in calls[-RUN_HELPS:]:
         call()
     engine.advance(state, new_state(0.0, 1e-3, account), limits, lambda *_: None)
 
@@ -274,4 +330,5 @@ if __name__ == "__main__":
             _errors(_native._CACHE_DIR / _names()[1]).unlink(missing_ok=True)
     finally:
         if _native._CACHE_DIR is not None:
+            _steps_mark(_native._CACHE_DIR / _names()[0]).unlink(missing_ok=True)
             (_native._CACHE_DIR / _names()[1]).unlink(missing_ok=True)

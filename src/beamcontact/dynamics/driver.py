@@ -119,7 +119,9 @@ class Engine(Protocol):
     ``advance(state, ctl, limits, emit) -> (state, stopping attempt or None, seconds of
     its first attempt)``: it makes the attempts, asks :func:`~beamcontact.dynamics.
     control.decide` about each, and emits every accepted step (:data:`Emit`), from
-    ``state`` and the controller's state ``ctl`` until t_end or a stop.
+    ``state`` and the controller's state ``ctl`` until t_end or a stop; and it may have
+    ``loop_compiling(state) -> bool``: True while that loop is not ready but ``attempt`` is,
+    so that the driver's host loop makes the steps meanwhile (:func:`_compiled_loop`).
     """
 
     name: str
@@ -316,7 +318,7 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
                 on_step(s)
 
     if getattr(engine, "runs_loop", False):
-        state, stopped, first_s = engine.advance(state, ctl, limits, emit)
+        state, stopped, first_s = _compiled_loop(engine, state, ctl, limits, emit, first)
     else:
         state, stopped, first_s = _host_loop(engine, state, ctl, limits, emit, first)
     status, message = ("completed", f"reached t = {ctl[T]:.6g} s in "
@@ -339,14 +341,37 @@ def _initial_account(engine: Engine, state, capacity: SearchCapacity | None,
                          engine.energies(state, capacity))
 
 
+def _compiled_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emit,
+                   capacity: SearchCapacity | None) -> tuple[object, Attempt | None, float]:
+    """The loop of an engine that runs it itself (``advance``). While another process
+    compiles that loop into an empty cache (``engine.loop_compiling()``, the native
+    engine's helper), the steps are made meanwhile by :func:`_host_loop` from the
+    engine's own attempts, the same steps bit for bit (tests/test_native_loop.py);
+    ``advance`` goes on from where they end. Returns as :func:`_host_loop`, with the
+    seconds of the first attempts of both."""
+    compiling = getattr(engine, "loop_compiling", None)
+    stopped, first_s = None, 0.0
+    if compiling is not None and compiling(state):
+        start = state
+        state, stopped, host_s = _host_loop(engine, state, ctl, limits, emit, capacity,
+                                            meanwhile=lambda: compiling(start))
+        first_s += host_s or 0.0
+    if stopped is None and unfinished(ctl[T], limits):
+        state, stopped, loop_s = engine.advance(state, ctl, limits, emit)
+        first_s += loop_s or 0.0
+    return state, stopped, first_s
+
+
 def _host_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emit,
-               capacity: SearchCapacity | None) -> tuple[object, Attempt | None, float | None]:
+               capacity: SearchCapacity | None, meanwhile: Callable[[], bool] | None = None
+               ) -> tuple[object, Attempt | None, float | None]:
     """The loop of an engine that makes one attempt per call: (the last accepted state,
     the attempt that stopped the run or None, seconds of the first attempt). The
-    candidate capacities grow on overflow (the attempt is redone)."""
+    candidate capacities grow on overflow (the attempt is redone). With ``meanwhile``,
+    it returns too once that says False (checked before each attempt)."""
     contact = engine.contact
     first_s = None
-    while unfinished(ctl[T], limits):
+    while unfinished(ctl[T], limits) and (meanwhile is None or meanwhile()):
         h = step_size(ctl[T], limits.t_end, ctl[H_TRY])
         watch = Stopwatch()
         attempt = engine.attempt(state, h, float(ctl[MOTION_FACTOR]), capacity)

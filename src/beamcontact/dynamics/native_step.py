@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from beamcontact import _native
 from beamcontact._native import CoreShare, Stopwatch, njit
 from beamcontact.assembly import native_model as nmod
 from beamcontact.assembly.model import LoadState
@@ -508,6 +509,8 @@ def _no_contact_elements() -> tuple[ssn.NativeContactElements, ssn.NativeLaw]:
 # the compiled loop returns to Python after about this much wall time [s], to write the
 # outputs, show progress and honour Ctrl-C
 CALL_SECONDS = 0.1
+# while a helper compiles the loop, whether it is ready is looked at this often [s]
+LOOK_SECONDS = 0.1
 
 
 class NativeEngine:
@@ -536,6 +539,8 @@ class NativeEngine:
         # latest states, so that a step under an unchanged set does not evaluate the
         # energy of its start again (the same sum at the same state)
         self._energies: list[tuple] = []
+        # (when, result) of the last look of loop_compiling
+        self._looked: tuple[float, bool] | None = None
 
     def _known_energy(self, u: np.ndarray, frozen: tuple) -> float:
         """The contact energy of ``frozen`` at u if an earlier attempt computed it, else
@@ -548,6 +553,32 @@ class NativeEngine:
 
     def _remember(self, u: np.ndarray, frozen: tuple, energy: float) -> None:
         self._energies = [(u, frozen[2], frozen[3], energy)] + self._energies[:3]
+
+    def loop_compiling(self, state: DynState) -> bool:
+        """Whether a helper is compiling the time loop into an empty cache and has
+        stored the attempt (beamcontact/_warmup.py): then the driver's host loop makes
+        the steps with :meth:`attempt` meanwhile (dynamics/driver.py), and :meth:`advance`
+        goes on from there once the loop is ready. The first call helps the helper (the
+        contact set at the predictor and the checks after a step, which :meth:`attempt`
+        calls too) and waits until the helper has stored the attempt or the loop; later
+        calls look again at most every LOOK_SECONDS."""
+        from beamcontact import _warmup
+
+        now = time.perf_counter()
+        if self._looked is None:
+            s = state if isinstance(state.u, np.ndarray) else self.host_state(state)
+            _warmup.help_while_waiting(self, s)
+        elif not self._looked[1] or now < self._looked[0] + LOOK_SECONDS:
+            return self._looked[1]
+        compiling = _warmup.steps_meanwhile()
+        if compiling:
+            _native.load_partial_for_python()  # the helper's attempt, as it is
+        if self._looked is None or compiling != self._looked[1]:
+            # one core for the helper meanwhile: with a thread of the kernels on each,
+            # the helper compiled 30 % longer and the steps ran slower
+            _native.set_threads(1 if compiling else None)
+        self._looked = (now, compiling)
+        return compiling
 
     def host_state(self, state: DynState) -> DynState:
         """``state`` with host arrays (the initial state comes from the JAX twin)."""
