@@ -541,6 +541,7 @@ class NativeEngine:
         self._energies: list[tuple] = []
         # (when, result) of the last look of loop_compiling
         self._looked: tuple[float, bool] | None = None
+        _native.set_threads(None)  # after another run that ended on one thread meanwhile
 
     def _known_energy(self, u: np.ndarray, frozen: tuple) -> float:
         """The contact energy of ``frozen`` at u if an earlier attempt computed it, else
@@ -575,7 +576,8 @@ class NativeEngine:
             _native.load_partial_for_python()  # the helper's attempt, as it is
         if self._looked is None or compiling != self._looked[1]:
             # one core for the helper meanwhile: with a thread of the kernels on each,
-            # the helper compiled 30 % longer and the steps ran slower
+            # the helper compiled 30 % longer and the steps ran slower (the next engine
+            # made in this process starts on all its threads again)
             _native.set_threads(1 if compiling else None)
         self._looked = (now, compiling)
         return compiling
