@@ -92,8 +92,6 @@ def _remove_stale(current: Path) -> None:
             shutil.rmtree(folder, ignore_errors=True)
 
 
-
-
 class _CompileClock(numba.core.event.Listener):
     """Times the outermost compile of each nest of Numba's compile events (a kernel's
     callees compile inside it). Loading compiled kernels from the disk cache is not a
@@ -406,7 +404,7 @@ def _typed_without_constants(dispatcher):
 
 
 # set by :func:`load_partial_for_python`
-_PARTIAL_FOR_PYTHON: list[bool] = []
+_partial_for_python = False
 
 
 def load_partial_for_python() -> None:
@@ -416,7 +414,8 @@ def load_partial_for_python() -> None:
     (beamcontact/_warmup.py), with the attempt the helper compiled inside another
     compile. As fast there: the bundled benchmark's steps from the driver's host loop
     took 9.5 s with the partial attempt and 9.6 s with one compiled whole (session 23)."""
-    _PARTIAL_FOR_PYTHON[:] = [True]
+    global _partial_for_python
+    _partial_for_python = True
 
 
 def _cached_whole(dispatcher):
@@ -452,7 +451,7 @@ def _cached_whole(dispatcher):
                 partial_file(signature).unlink(missing_ok=True)
 
     def load_whole_for_python(signature, target_context):
-        if not _COMPILING and not _PARTIAL_FOR_PYTHON and partial_file(signature).exists():
+        if not _COMPILING and not _partial_for_python and partial_file(signature).exists():
             return None  # a call from Python: compile it whole
         return load(signature, target_context)
 

@@ -344,7 +344,7 @@ def _initial_account(engine: Engine, state, capacity: SearchCapacity | None,
 def _compiled_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emit,
                    capacity: SearchCapacity | None) -> tuple[object, Attempt | None, float]:
     """The loop of an engine that runs it itself (``advance``). While another process
-    compiles that loop into an empty cache (``engine.loop_compiling()``, the native
+    compiles that loop into an empty cache (``engine.loop_compiling(state)``, the native
     engine's helper), the steps are made meanwhile by :func:`_host_loop` from the
     engine's own attempts, the same steps bit for bit (tests/test_native_loop.py);
     ``advance`` goes on from where they end. Returns as :func:`_host_loop`, with the
