@@ -80,21 +80,20 @@ def test_compiled_loop_makes_the_host_loops_steps(variant):
     assert max(r.diagnostics["E_contact"] for r in rows) > 0.0  # contact acted
 
 
-class LoopLater:
+class LoopLater(HostLooped):
     """A native engine whose compiled loop is "being compiled" (``loop_compiling``) for
     its first ``attempts`` attempts, as by the helper of a cold run: the driver makes
     those with its host loop, then the compiled loop goes on from there."""
 
+    runs_loop = True
+
     def __init__(self, engine, attempts: int):
-        self._engine, self.attempts, self.looks = engine, attempts, 0
-        self.name, self.contact, self.runs_loop = engine.name, engine.contact, True
+        super().__init__(engine)
+        self.attempts, self.looks = attempts, 0
 
     def loop_compiling(self, state) -> bool:
         self.looks += 1
         return self.looks <= self.attempts
-
-    def __getattr__(self, name):
-        return getattr(self._engine, name)
 
 
 def test_steps_made_while_the_loop_compiles_are_the_loops_own():

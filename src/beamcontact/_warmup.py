@@ -62,12 +62,19 @@ def _errors(lock: Path) -> Path:
     return lock.with_suffix(".err")
 
 
-def _files() -> tuple[Path, Path] | None:
+def _paths() -> tuple[Path, Path] | None:
+    """The ready mark and the lock in the kernel cache folder (None: no cache)."""
     folder = _native._CACHE_DIR
-    if folder is None or os.environ.get(_IN_HELPER):
+    if folder is None:
         return None
     ready, lock = _names()
     return folder / ready, folder / lock
+
+
+def _files() -> tuple[Path, Path] | None:
+    """:func:`_paths` for a run (None in the helper, which neither starts nor waits for
+    a helper)."""
+    return None if os.environ.get(_IN_HELPER) else _paths()
 
 
 def _steps_mark(ready: Path) -> Path:
@@ -118,10 +125,10 @@ def steps_meanwhile() -> bool:
 
 def loop_ready() -> None:
     """Mark the loop as compiled into the cache (after its first call in any process)."""
-    folder = _native._CACHE_DIR
-    if folder is not None:
+    paths = _paths()
+    if paths is not None:
         with contextlib.suppress(OSError):
-            (folder / _names()[0]).touch()
+            paths[0].touch()
 
 
 def start_if_cold() -> None:
@@ -243,8 +250,9 @@ def _compile_loop() -> None:
     calls = _kernel_calls(engine, state)
     for call in calls[:-RUN_HELPS]:
         call()
-    if _native._CACHE_DIR is not None:  # a run may step without the loop from now on
-        _steps_mark(_native._CACHE_DIR / _names()[0]).touch()
+    paths = _paths()
+    if paths is not None:  # a run may step without the loop from now on
+        _steps_mark(paths[0]).touch()
     for call in calls[-RUN_HELPS:]:
         call()
     engine.advance(state, new_state(0.0, 1e-3, account), limits, lambda *_: None)
@@ -326,9 +334,9 @@ if __name__ == "__main__":
     try:
         _compile_loop()
         loop_ready()
-        if _native._CACHE_DIR is not None:
-            _errors(_native._CACHE_DIR / _names()[1]).unlink(missing_ok=True)
+        if _paths() is not None:
+            _errors(_paths()[1]).unlink(missing_ok=True)
     finally:
-        if _native._CACHE_DIR is not None:
-            _steps_mark(_native._CACHE_DIR / _names()[0]).unlink(missing_ok=True)
-            (_native._CACHE_DIR / _names()[1]).unlink(missing_ok=True)
+        if _paths() is not None:
+            _steps_mark(_paths()[0]).unlink(missing_ok=True)
+            _paths()[1].unlink(missing_ok=True)
