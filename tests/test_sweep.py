@@ -233,10 +233,11 @@ def test_existing_scheduler_on_loopback_equals_serial_runs(tmp_path):
 
 
 def test_failing_member_is_recorded_and_others_complete(tmp_path):
-    # a nonlinear vibration needs more than one Newton iteration per step
+    # a nonlinear vibration needs more than one Newton iteration per step to pass the
+    # residual test (Newton's error test off: one iteration usually passes that)
     raw = tomllib.loads((REPO / "examples" / "pinned_beam_vibration" / "case.toml").read_text())
     raw["analysis"]["t_end"] = 0.02
-    raw["solver"] = {"max_cutbacks": 0}
+    raw["solver"] = {"max_cutbacks": 0, "newton_error_fraction": 0.0}
     members = expand(raw, [parse_setting("solver.max_iterations=1,25")])
     rows = run_sweep(members, tmp_path / "sweep", ["mid"], workers=2)
     assert [r["status"] for r in rows] == ["failed", "completed"]

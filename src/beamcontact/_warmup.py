@@ -307,7 +307,7 @@ def _kernel_calls(engine, state) -> list:
         lambda: ns.attempt(nm, frozen, sysm.position, sysm.block_positions, sysm.free, band,
                            B, C, D, ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u,
                            s.v, s.a, s.f_pot, s.load_state.theta, s.load_state.tangent, 1e-3,
-                           0.0, 1e-8, 1e-9, 1e-3, 1.0, 10, 4, np.nan, np.nan, *out),
+                           0.0, 1e-8, 1e-9, 1e-9, 1e-3, 1.0, 10, 4, np.nan, np.nan, *out),
         lambda: ssn.step_set_at(x, x.copy(), v, v.copy(), 1e-3, 0.0, ne, law),
         lambda: ssn.after_step(x, x.copy(), x.copy(), 0.0, ne, law, frozen[2]),
     ]

@@ -79,11 +79,11 @@ def run(nm, ne, law, has_contact, system, no_contact, newton, ctl, limits, u, v,
     Arguments: nm the NativeModel; ne, law the contact elements and law
     (step_set_native); has_contact; system the bordered layout and work arrays
     (position, block positions, free dofs in layout order, band, B, C, D, ipiv, ipiv_s,
-    kl, ku); no_contact the frozen set of no blocks; newton (alpha, rtol, utol, dt_ref,
-    total mass, max_iterations, diverge_after); ctl, limits the controller's state and
+    kl, ku); no_contact the frozen set of no blocks; newton (alpha, rtol, utol, etol,
+    dt_ref, total mass, max_iterations, diverge_after); ctl, limits the controller's state and
     settings (dynamics/control.py).
     """
-    alpha, rtol, utol, dt_ref, total_mass, max_iterations, diverge_after = newton
+    alpha, rtol, utol, etol, dt_ref, total_mass, max_iterations, diverge_after = newton
     position, positions, free_layout, band, B, C, D, ipiv, ipiv_s, kl, ku = system
     n = u.shape[0]
     nu, nv, na, nf = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
@@ -113,9 +113,9 @@ def run(nm, ne, law, has_contact, system, no_contact, newton, ctl, limits, u, v,
             elif _same_set(pairs, W, tried_pairs, tried_W, integrated):
                 e_before = tried_e
         attempt(nm, frozen, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s,
-                kl, ku, u, v, a, f_pot, theta, tangent, h_used, alpha, rtol, utol, dt_ref,
-                total_mass, max_iterations, diverge_after, e_before, e_kin, nu, nv, na, nf,
-                ntheta, ntangent, values, counts)
+                kl, ku, u, v, a, f_pot, theta, tangent, h_used, alpha, rtol, utol, etol,
+                dt_ref, total_mass, max_iterations, diverge_after, e_before, e_kin, nu, nv,
+                na, nf, ntheta, ntangent, values, counts)
         made[1] += 1
         if has_contact:
             if np.isnan(e_before):

@@ -162,8 +162,24 @@ def _residual(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_
 
 
 @njit
+def _remaining_error(band, B, C, D, kl, ku, ipiv, ipiv_s, position, r, r_layout, x,
+                     coupled):
+    """The error left in a Newton iterate whose supported residual is r: the largest
+    component of the next increment, -K^-1 r, with the factors of the tangent that gave
+    the iterate (still in band, B, C, D; Hairer & Wanner, Solving ODEs II, Sec. IV.8).
+    r_layout and x are scratch."""
+    for i in range(r.shape[0]):
+        r_layout[position[i]] = -r[i]
+    bordered.solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, x, coupled)
+    largest = 0.0
+    for i in range(r.shape[0]):
+        largest = max(largest, abs(x[i]))
+    return largest
+
+
+@njit
 def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s, kl,
-            ku, u_n, v_n, a_n, f_pot_n, theta_n, t_n, h, alpha, rtol, utol, dt_ref,
+            ku, u_n, v_n, a_n, f_pot_n, theta_n, t_n, h, alpha, rtol, utol, etol, dt_ref,
             total_mass, max_iterations, diverge_after, e_contact_n, e_kin_n, u, v, a, f_pot,
             theta, tangent, values, counts):
     """One attempt at a step h from (u_n, v_n, a_n, f_pot_n, theta_n, t_n) into (u, v, a,
@@ -175,7 +191,13 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     is already shortened by the conservative advancement; ``e_contact_n`` is its energy
     at u_n and ``e_kin_n`` the kinetic energy of (u_n, v_n) when the caller knows them
     (NaN: computed here). The contact checks after the
-    step (approach, gap, missed blocks) are the caller's."""
+    step (approach, gap, missed blocks) are the caller's.
+
+    Newton stops on the tests of :func:`~beamcontact.solvers.newton.newton`, the same
+    three: the residual (rtol), the increment (utol, scaled by (h/dt_ref)^2) and, when
+    ``etol`` > 0, the error left in the iterate (the next increment with the factors in
+    hand at most etol). With etol > 0 each iterate is evaluated without its tangent
+    first (it usually passes), the tangent following only when it does not."""
     n = u_n.shape[0]
     beta = 0.25 * (1.0 - alpha) ** 2
     gamma = 0.5 - alpha
@@ -199,13 +221,15 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
                                                    alpha, f_pot_n, theta_n, t_n, *args)
     done, failed = norm0 <= atol, not np.isfinite(norm0)
     k, rn, last_step = 0, norm0, 0.0
+    coupled = contact[2].shape[0] > 0
     while not done and not failed and k < max_iterations:
         step, finite = bordered.newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position,
-                                              r_layout, du, u, contact[2].shape[0] > 0)
+                                              r_layout, du, u, coupled)
         # an iterate expected to be the solution (its increment below the tolerance, or
-        # fallen by CONVERGING, Newton's quadratic phase) is checked on its residual
-        # alone; the tangent follows only if it is not (the same residual, bit for bit)
-        light = step <= utol_h or step <= CONVERGING * last_step
+        # fallen by CONVERGING, Newton's quadratic phase, or any iterate under the error
+        # test) is checked on its residual alone; the tangent follows only if it is not
+        # (the same residual, bit for bit)
+        light = step <= utol_h or step <= CONVERGING * last_step or etol > 0.0
         # the last evaluation is at the solution: its contact and strain energies are the
         # step's
         if light:
@@ -215,6 +239,9 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
             rn, e_contact, e_strain = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs,
                                                         alpha, f_pot_n, theta_n, t_n, *args)
         converged = rn <= rtol * norm0 + atol or step <= utol_h
+        if not converged and etol > 0.0 and np.isfinite(rn):
+            converged = _remaining_error(band, B, C, D, kl, ku, ipiv, ipiv_s, position, r,
+                                         r_layout, du, coupled) <= etol
         diverged = diverge_after > 0 and k + 1 >= diverge_after and rn > norm0
         failed = not np.isfinite(rn) or not finite or diverged
         done = converged and not failed
@@ -531,7 +558,7 @@ class NativeEngine:
         self._contact = None if contact is None else NativeContact(contact)
         self.system = NativeSystem(self.nm, beam_dofs(self.nm))
         self.alpha, self.options = float(alpha), options
-        self.utol = options.utol * length
+        self.utol, self.etol = options.utol * length, options.etol * length
         self.dt_ref = float(dt_ref)
         nm = self.nm
         self.total_mass = float(np.sum(nm.rho_area[:, None] * nm.wq * np.sqrt(nm.g_ref)))
@@ -612,7 +639,7 @@ class NativeEngine:
         attempt(self.nm, frozen, sysm.position, sysm.block_positions, sysm.free, ar.band,
                 ar.B, ar.C, ar.D, ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u, s.v, s.a, s.f_pot,
                 s.load_state.theta, s.load_state.tangent, h_used, self.alpha,
-                self.options.rtol, self.utol, self.dt_ref, self.total_mass,
+                self.options.rtol, self.utol, self.etol, self.dt_ref, self.total_mass,
                 self.options.max_iterations, DIVERGE_AFTER, e_before, np.nan, u, v, a, f_pot,
                 theta, tangent, values, counts)
         if has_contact:
@@ -652,8 +679,9 @@ class NativeEngine:
         ar = sysm.arrays
         system = (sysm.position, sysm.block_positions, sysm.free, ar.band, ar.B, ar.C, ar.D,
                   ar.ipiv, ar.ipiv_s, lay.kl, lay.ku)
-        newton = (self.alpha, float(self.options.rtol), float(self.utol), self.dt_ref,
-                  self.total_mass, int(self.options.max_iterations), int(DIVERGE_AFTER))
+        newton = (self.alpha, float(self.options.rtol), float(self.utol), float(self.etol),
+                  self.dt_ref, self.total_mass, int(self.options.max_iterations),
+                  int(DIVERGE_AFTER))
         last_values, last_counts = np.zeros(len(VALUES)), np.zeros(len(COUNTS), np.int64)
         made = np.zeros(2, np.int64)
         budget, first_s = 1, None

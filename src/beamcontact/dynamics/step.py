@@ -45,8 +45,9 @@ def diagnostics(state: DynState, model: Model, contact: FrozenContact | None = N
 
 
 @persistent_jit(static_argnames=("max_iterations", "capacity"))
-def fused_attempt(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, motion_factor,
-                  search: ContactSearch | None = None, cs: ContactSet | None = None, *,
+def fused_attempt(state: DynState, model: Model, h, alpha, rtol, utol, etol, dt_ref,
+                  motion_factor, search: ContactSearch | None = None,
+                  cs: ContactSet | None = None, *,
                   max_iterations: int, capacity: SearchCapacity | None = None):
     """One attempt at a step of (at most) h, fused into a single dispatch.
 
@@ -55,7 +56,8 @@ def fused_attempt(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, m
     "zones", chosen on the host); the conservative advancement
     (:func:`~beamcontact.contact.step_set.advanced_step`); the HHT-alpha Newton solve
     (increment tolerance ``utol`` scaled by (h/dt_ref)^2: the acceleration is a
-    displacement difference over beta h^2); the local error estimate; the post-step
+    displacement difference over beta h^2; ``etol`` the bound of the error left in an
+    iterate); the local error estimate; the post-step
     contact checks (:func:`~beamcontact.contact.step_set.after_step`); diagnostics.
 
     Returns (new state, values, counts): values a float64 vector of the quantities named
@@ -85,7 +87,8 @@ def fused_attempt(state: DynState, model: Model, h, alpha, rtol, utol, dt_ref, m
     # increment test only stops Newton at the round-off of the positions
     utol_h = jnp.maximum(utol * jnp.minimum((h_used / dt_ref) ** 2, 1.0),
                          8.0 * jnp.finfo(x0.dtype).eps * jnp.max(jnp.abs(x0)))
-    new, res = hht_step(state, model, h_used, alpha, rtol, utol_h, max_iterations, contact)
+    new, res = hht_step(state, model, h_used, alpha, rtol, utol_h, max_iterations, contact,
+                        etol)
     beta = 0.25 * (1.0 - alpha) ** 2
     da = (new.a - state.a) * model.free
     report.update(iterations=res.iterations, residual_norm=res.residual_norm,
@@ -172,7 +175,8 @@ class JaxEngine:
         # host scalars as NumPy float64: strongly typed like the arrays they replace, and
         # passed to the jitted step without eager device operations
         self._scalars = (np.float64(alpha), np.float64(options.rtol),
-                         np.float64(options.utol * length), np.float64(dt_ref))
+                         np.float64(options.utol * length), np.float64(options.etol * length),
+                         np.float64(dt_ref))
         self._search = None if contact is None else self.contact.search
 
     def attempt(self, state: DynState, h: float, motion_factor: float,

@@ -387,10 +387,14 @@ class Solver(_Strict):
     L = 10 m allows 25 um per step (0: fixed steps of analysis.dt, cut only on failure);
     energy_tol: a step that creates more than this fraction of E_kin + E_strain +
     |E_contact|, or whose contact-set change jumps the energy by more, is redone shorter
-    (0: no check). linear_solver: how Newton's linear systems are solved, "dense" (one
-    n x n matrix, LU on the device), "sparse" (the local blocks kept as triplets, banded
-    or sparse LU on the host; cost linear in the number of dofs) or "auto" (sparse on CPU
-    from 300 dofs on, else dense; the jax engine's choice). engine: which engine runs the
+    (0: no check); newton_error_fraction: Newton also stops once the error left in its
+    iterate (the next increment, solved with the factors of the tangent in hand) is below
+    this fraction of the local error bound error_tol L, a thousandth by default (0: only
+    rtol and utol stop it; Hairer & Wanner, Solving ODEs II, Sec. IV.8). linear_solver:
+    how Newton's linear systems are solved, "dense" (one n x n matrix, LU on the device),
+    "sparse" (the local blocks kept as triplets, banded or sparse LU on the host; cost
+    linear in the number of dofs) or "auto" (sparse on CPU from 300 dofs on, else dense;
+    the jax engine's choice). engine: which engine runs the
     steps (docs/architecture.md, "Engines"): "native" (compiled for the CPU, Numba),
     "jax" (differentiable, GPUs) or "auto" (native where every term of the case has a
     native kernel and no GPU is installed, else jax; summary.json's ``solver`` says which
@@ -403,6 +407,7 @@ class Solver(_Strict):
     max_cutbacks: Annotated[int, Field(ge=0, le=200)] = 20
     error_tol: Annotated[float, Field(ge=0.0, lt=1.0)] = 2.5e-6
     energy_tol: Annotated[float, Field(ge=0.0)] = 2.5e-4
+    newton_error_fraction: Annotated[float, Field(ge=0.0, lt=1.0)] = 1e-3
     linear_solver: Literal["auto", "dense", "sparse"] = "auto"
     engine: Literal["auto", "native", "jax"] = "auto"
 

@@ -60,8 +60,10 @@ def prepare(case: Case) -> Prepared:
         raise CaseError(f"beams: {exc}") from None
     model, disc = build_model(case, disc)
     so = case.solver
+    # the error left in a Newton iterate is bounded relative to a time step's local error
+    etol = so.newton_error_fraction * so.error_tol if case.analysis.kind == "dynamic" else 0.0
     return Prepared(case, disc, model, build_contact(case, disc),
-                    NewtonOptions(so.max_iterations, so.rtol, so.utol))
+                    NewtonOptions(so.max_iterations, so.rtol, so.utol, etol))
 
 
 # the dense tangent's bytes per entry in the JAX engine: the matrix, its LU and the

@@ -1,8 +1,14 @@
 """Newton-Raphson with the consistent (AD) tangent, as one ``lax.while_loop``.
 
-Convergence (both measured on free dofs):
-    ||r_k|| <= rtol * ||r_0|| + atol     or     ||du_k||_inf <= utol * length,
-where r_0 is the residual at the predictor. A NaN, the iteration limit, or (when asked
+Convergence (all measured on free dofs):
+    ||r_k|| <= rtol * ||r_0|| + atol     or     ||du_k||_inf <= utol * length
+    or     ||K_(k-1)^-1 r_k||_inf <= etol * length   (when etol > 0),
+where r_0 is the residual at the predictor. The third test bounds the error left in the
+iterate u_k by the next increment, computed with the tangent that gave u_k (the factors
+a solver has in hand), as implicit integrators stop their Newton iterations once that
+error is a small fraction of the local error tolerance (Hairer & Wanner, Solving ODEs
+II, Sec. IV.8): time steps set etol = newton_error_fraction * error_tol; statics do not
+use it. A NaN, the iteration limit, or (when asked
 for with ``diverge_after``) divergence ends the loop with ``converged = False``; the
 caller (load stepping, time stepping) decides what to do.
 """
@@ -17,11 +23,13 @@ from beamcontact.solvers.linear import solve
 
 @dataclass(frozen=True)
 class NewtonOptions:
-    """Newton settings; ``max_iterations`` is static, the tolerances are plain floats."""
+    """Newton settings; ``max_iterations`` is static, the tolerances are plain floats
+    (utol and etol fractions of the length scale L; etol 0: no error test)."""
 
     max_iterations: int = 25
     rtol: float = 1e-9
     utol: float = 1e-11
+    etol: float = 0.0
 
 
 @pytree
@@ -48,12 +56,15 @@ def newton(residual_tangent, u0, max_iterations: int, tolerances,
             e.g. a force needed after convergence) of the final u is returned.
         u0: predictor.
         max_iterations: the static iteration limit.
-        tolerances: array (rtol, atol, utol * length), traced so no recompilation.
+        tolerances: array (rtol, atol, utol * length[, etol * length]), traced so no
+            recompilation; without the fourth entry no error test (and no second solve
+            per iteration).
         diverge_after: if > 0, the solve fails as soon as the residual is still above
             ||r_0|| after this many iterations, so a hopeless attempt is given up early
             (time steps: at impacts most failed attempts diverge, and the step is cut).
     """
     rtol, atol, utol_abs = tolerances[0], tolerances[1], tolerances[2]
+    error_test = tolerances.shape[0] > 3
     r0, K0, aux0 = residual_tangent(u0)
     norm0 = jnp.linalg.norm(r0)
 
@@ -65,9 +76,13 @@ def newton(residual_tangent, u0, max_iterations: int, tolerances,
         u, r, K, _, k, _, _, _ = state
         du = solve(K, -r)
         u = u + du
-        r, K, aux = residual_tangent(u)
+        r, K_new, aux = residual_tangent(u)
         rn = jnp.linalg.norm(r)
         done = (rn <= rtol * norm0 + atol) | (jnp.max(jnp.abs(du)) <= utol_abs)
+        if error_test:
+            etol_abs = tolerances[3]
+            done = done | ((etol_abs > 0.0) & (jnp.max(jnp.abs(solve(K, -r))) <= etol_abs))
+        K = K_new
         diverged = (diverge_after > 0) & (k + 1 >= diverge_after) & (rn > norm0)
         failed = ~jnp.isfinite(rn) | ~jnp.all(jnp.isfinite(du)) | diverged
         return u, r, K, aux, k + 1, done & ~failed, failed, rn
