@@ -43,7 +43,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._native import njit, njit_inline, njit_parallel, prange
+from beamcontact._native import njit, njit_inline, njit_parallel, njit_parallel_uncounted, prange
 from beamcontact.beam import energy_native, inertia_native, loads_native
 
 
@@ -409,7 +409,8 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
     _hht_elements(x, nm.conn, nm.dR, nm.ddR, nm.wq, nm.g_ref, nm.K_ref, nm.eta, nm.w_eta,
                   nm.E, nm.x_ref, u.reshape(shape), u_n.reshape(shape), v_n.reshape(shape),
                   a_n.reshape(shape), coeffs, nm.R, nm.rho_area, nm.rho_inertia, r_el, k_out,
-                  energies, r_in, k_in, tangent)
+                  energies, r_in, k_in, tangent,
+                  energy_native.element_scratch(n_el, n) + _inertia_scratch(n_el, n))
     e_strain = 0.0
     for e in range(n_el):  # in element order, as block_strain_residual_tangent sums
         e_strain += energies[e]
@@ -425,19 +426,20 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
     return e_strain
 
 
-@njit_parallel
+@njit_parallel_uncounted
 def _hht_elements(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, x_ref, u2, un2, vn2, an2,
                   coeffs, R, rho_area, rho_inertia, r_strain, k_strain, energies, r_inertia,
-                  k_inertia, tangent):
+                  k_inertia, tangent, scratch):
     """Each element's strain force, block and energy (as
     :func:`~beamcontact.beam.energy_native.block_strain_residual_tangent`) into
     r_strain[e], k_strain[e], energies[e] and its inertia force and block (as
     :func:`inertia_residual_blocks`) into r_inertia[e], k_inertia[e], in one pass over the
     elements on the cores: one parallel loop per evaluation of the HHT residual instead
-    of two, each element whole on one thread (``tangent`` False: no blocks)."""
-    n_el, n = conn.shape
-    x_all, grad_all, hess_all = energy_native.element_scratch(n_el, n)
-    w_all, m_all, jac_all, J_all = _inertia_scratch(n_el, n)
+    of two, each element whole on one thread (``tangent`` False: no blocks). ``scratch``:
+    :func:`~beamcontact.beam.energy_native.element_scratch` and :func:`_inertia_scratch`
+    of the elements, the caller's (this loop allocates nothing: no reference counts)."""
+    n_el = conn.shape[0]
+    x_all, grad_all, hess_all, w_all, m_all, jac_all, J_all = scratch
     for e in prange(n_el):
         energies[e] = energy_native.element_strain_at(
             e, x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, x_all[e], grad_all[e],

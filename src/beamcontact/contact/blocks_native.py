@@ -142,12 +142,13 @@ def chunk_boxes(p, out):
 
 
 @njit
-def _row_within_reach(px, py, p2, boxes2, Wi, reach2, j_out, r_out, s_out, start):
-    """The pairs of one point (px, py) of element 1 with the points p2 of element 2 that
-    the law may see: weight Wi[j] not 0 and squared distance below reach2, in the order
+def _row_within_reach(px, py, p2, boxes2, W, i, reach2, j_out, r_out, s_out, start):
+    """The pairs of point i, (px, py), of element 1 with the points p2 of element 2 that
+    the law may see: weight W[i, j] not 0 and squared distance below reach2, in the order
     of j, written from index ``start`` on (j, r = (px, py) - p2[j], s = r . r). Chunks of
     CHUNK points of p2 whose box (boxes2) is beyond the reach are skipped unseen. Returns
-    the index after the last pair written."""
+    the index after the last pair written. (W whole and the row's index: a row view
+    passed to this call would count a reference twice per row.)"""
     c_out = start
     n2 = p2.shape[0]
     for c in range(boxes2.shape[0]):
@@ -155,7 +156,7 @@ def _row_within_reach(px, py, p2, boxes2, Wi, reach2, j_out, r_out, s_out, start
         if point_box_gap2(px, py, b[0], b[1], b[2], b[3]) >= reach2:
             continue
         for j in range(c * CHUNK, min((c + 1) * CHUNK, n2)):
-            if Wi[j] == 0.0:
+            if W[i, j] == 0.0:
                 continue
             rx, ry = px - p2[j, 0], py - p2[j, 1]
             sj = rx * rx + ry * ry
@@ -240,7 +241,7 @@ def _pairs_within_reach(law, X1, X2, R1, R2, W, R12, amplitude, m, q_reg, cutoff
         rows[i] = count
         px, py = p1[i, 0], p1[i, 1]
         if point_box_gap2(px, py, lo_x, lo_y, hi_x, hi_y) < reach2:  # else beyond reach
-            count = _row_within_reach(px, py, p2, boxes2, W[i], reach2, js, r, sq, count)
+            count = _row_within_reach(px, py, p2, boxes2, W, i, reach2, js, r, sq, count)
     rows[ns1] = count
     phi, d1, d2 = np.empty(count), np.empty(count), np.empty(count)
     pair_laws(law, sq, count, R12, amplitude, m, q_reg, cutoff, phi, d1, d2)
