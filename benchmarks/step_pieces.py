@@ -97,7 +97,7 @@ def main() -> None:
             cs = contact.frozen_set(positions(state.u, model), 0.01, cap)[0]
         real = int(np.sum(np.asarray(cs.pairs)[:, 0] < search.elements.n_elements))
         args = (state, model, h, np.float64(0.0), np.float64(1e-9), np.float64(1e-10),
-                np.float64(0.0), np.float64(1e-3), np.float64(1.0), search, cs_host)
+                None, np.float64(1e-3), np.float64(1.0), search, cs_host)
         counts = fused_attempt(*args, max_iterations=25, capacity=cap)[2]
         rows.append((f"whole fused attempt ({int(counts[1])} Newton iterations)",
                      best_ms(lambda: fused_attempt(*args, max_iterations=25, capacity=cap))))

@@ -78,13 +78,14 @@ def initial_state(u0, v0, model: Model, load_state: LoadState,
 
 @lazy_jit(static_argnames=("max_iterations",))
 def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs, max_iterations: int,
-             contact: FrozenContact | None = None, etol_abs=0.0
+             contact: FrozenContact | None = None, etol_abs=None
              ) -> tuple[DynState, NewtonResult]:
     """Advance by dt; returns the new state (meaningful only if converged) and Newton info.
 
     ``contact``: the contact elements and the blocks frozen for this step (None without
     contact); contact forces enter f_pot (eq. 36). ``etol_abs``: the bound of the error
-    left in an iterate (:func:`~beamcontact.solvers.newton.newton`; 0: no such test).
+    left in an iterate (:func:`~beamcontact.solvers.newton.newton`; None: no such test,
+    and no second solve per iteration).
     """
     coeffs = hht_coefficients(alpha, dt)
 
@@ -95,8 +96,8 @@ def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs, max_itera
         return (*apply_supports(r, linear.add(K_i, K_p, 1.0 + alpha), model.free), r_p)
 
     u_pred = predictor(state, dt)
-    tol = jnp.stack([rtol, rtol * jnp.linalg.norm(state.f_pot * model.free), utol_abs,
-                     etol_abs])
+    tol = jnp.stack([rtol, rtol * jnp.linalg.norm(state.f_pot * model.free), utol_abs]
+                    + ([] if etol_abs is None else [etol_abs]))
     res = newton(residual_tangent, u_pred, max_iterations, tol, diverge_after=DIVERGE_AFTER)
     v, a = newmark_kinematics(res.u, state.u, state.v, state.a, coeffs)
     new = DynState(state.t + dt, res.u, v, a, res.aux,

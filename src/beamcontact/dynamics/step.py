@@ -57,7 +57,7 @@ def fused_attempt(state: DynState, model: Model, h, alpha, rtol, utol, etol, dt_
     (:func:`~beamcontact.contact.step_set.advanced_step`); the HHT-alpha Newton solve
     (increment tolerance ``utol`` scaled by (h/dt_ref)^2: the acceleration is a
     displacement difference over beta h^2; ``etol`` the bound of the error left in an
-    iterate); the local error estimate; the post-step
+    iterate, None without that test); the local error estimate; the post-step
     contact checks (:func:`~beamcontact.contact.step_set.after_step`); diagnostics.
 
     Returns (new state, values, counts): values a float64 vector of the quantities named
@@ -174,8 +174,11 @@ class JaxEngine:
         self.contact = None if contact is None else contact.on_device()
         # host scalars as NumPy float64: strongly typed like the arrays they replace, and
         # passed to the jitted step without eager device operations
+        # without the error test (fixed steps) no etol at all: Newton then solves once per
+        # iteration (solvers/newton.py)
         self._scalars = (np.float64(alpha), np.float64(options.rtol),
-                         np.float64(options.utol * length), np.float64(options.etol * length),
+                         np.float64(options.utol * length),
+                         np.float64(options.etol * length) if options.etol > 0 else None,
                          np.float64(dt_ref))
         self._search = None if contact is None else self.contact.search
 
