@@ -331,12 +331,13 @@ def help_while_waiting(engine, state) -> None:
         call()
 
 if __name__ == "__main__":
+    paths = _paths()
     try:
         _compile_loop()
         loop_ready()
-        if _paths() is not None:
-            _errors(_paths()[1]).unlink(missing_ok=True)
+        if paths is not None:
+            _errors(paths[1]).unlink(missing_ok=True)
     finally:
-        if _paths() is not None:
-            _steps_mark(_paths()[0]).unlink(missing_ok=True)
-            _paths()[1].unlink(missing_ok=True)
+        if paths is not None:
+            _steps_mark(paths[0]).unlink(missing_ok=True)
+            paths[1].unlink(missing_ok=True)
