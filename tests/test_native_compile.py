@@ -1,8 +1,9 @@
 """How the native kernels are compiled (beamcontact/_native.py, beamcontact/_warmup.py;
 docs/engines.md, "Compilation"): a constant argument compiles no second kernel, a kernel
 compiled inside another keeps IEEE arithmetic, the time of compiles is measured, a kernel
-loads from the cache without parsing its LLVM bitcode, and the helper that compiles the
-time loop builds its model with the spline kernels run as Python, to the same numbers.
+loads from the cache without parsing its LLVM bitcode, the helper that compiles the
+time loop builds its model with the spline kernels run as Python, to the same numbers,
+and no kernel makes Numba compile its error message for mismatched shapes (slow).
 
 Each check runs in a fresh process with the kernel cache off, so that what it counts is
 compiled there and then."""
@@ -13,6 +14,7 @@ import sys
 
 import jax
 import numpy as np
+import pytest
 
 from beamcontact import _warmup
 from beamcontact.io.case import parse_case
@@ -96,6 +98,58 @@ print(_native.OPTIMISE_OUTERMOST_ONLY, after["skipped"] - before["skipped"],
     assert int(skipped) >= 1 and int(run) >= 1, out  # terms' library skipped, outer's ran
     assert via_outer == direct == python
 
+
+
+_SHAPE_ERRORS = """
+import copy, sys, tempfile
+from pathlib import Path
+import numba.core.event
+from beamcontact import _warmup, enable_x64
+from beamcontact.io.case import parse_case
+from beamcontact.runner import run_case
+
+compiled = []
+
+
+class Names(numba.core.event.Listener):
+    def on_start(self, ev):
+        func = ev.data["dispatcher"].py_func
+        compiled.append(f"{func.__module__}.{func.__qualname__}")
+
+    def on_end(self, ev):
+        pass
+
+
+numba.core.event.register("numba:compile", Names())
+enable_x64()
+for contact in ({"model": "cg", "segments_per_element": 2},
+                {"model": "ipip", "pairing": "zones", "segments_per_element": 2},
+                {"model": "ipip", "pairing": "points", "segments_per_element": 2}, None):
+    case = copy.deepcopy(_warmup.TINY_CASE)
+    case["solver"] = {"engine": "native"}
+    if contact is None:  # statics: the load-stepping loop
+        case["analysis"] = {"kind": "static", "load_steps": 2}
+        case["loads"] = [{"beam": "a", "at": "end", "force": [0.0, -1.0]}]
+    else:
+        case["analysis"]["t_end"] = 3e-3
+        case["contact"] = contact
+    summary = run_case(parse_case(case), "", Path(tempfile.mkdtemp()) / "out")
+    assert summary["status"] == "completed", summary
+print(sum(name.startswith("beamcontact.") for name in compiled),
+      sum("raise_with_shape_context" in name for name in compiled))
+"""
+
+
+@pytest.mark.slow
+def test_no_kernel_compiles_the_error_message_of_mismatched_shapes():
+    """An array assigned to a slice or row of another (``out[k] = values``) makes Numba
+    compile its error message for mismatched shapes, about 2 s per process of a cold start
+    (arrays_native.py). Runs of every native path (dynamics with each contact law,
+    statics), the kernels compiled afresh: many kernels compiled, that message never.
+    About a minute."""
+    kernels, shape_errors = map(int, _python(_SHAPE_ERRORS).split())
+    assert kernels > 50
+    assert shape_errors == 0
 
 
 def test_the_compile_clock_counts_compiles_only():

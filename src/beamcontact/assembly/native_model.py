@@ -419,10 +419,15 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
         r_out[i] = c * r_pot_out[i] - alpha * f_pot_n[i]
     if tangent:
         k_out *= c
+    m = k_in.shape[1]
     for e in range(n_el):
         _scatter_add(nm.block_dofs[e], r_in[e], r_out)
         if tangent:
-            k_out[e] += k_in[e]
+            # element by element: k_out[e] += k_in[e] compiles Numba's error message for
+            # mismatched shapes (1 s with empty caches)
+            for i in range(m):
+                for j in range(m):
+                    k_out[e, i, j] += k_in[e, i, j]
     return e_strain
 
 

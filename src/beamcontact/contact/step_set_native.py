@@ -48,6 +48,7 @@ from typing import NamedTuple
 import numpy as np
 
 from beamcontact._native import njit, njit_parallel, prange
+from beamcontact.arrays_native import copy_2d
 from beamcontact.contact.blocks_native import bounding_box, point_box_gap2
 from beamcontact.dynamics.control import ADVANCE_ACCEPT, ADVANCE_FRACTION
 
@@ -579,12 +580,12 @@ def zone_weights(q, pairs, beam, local, q_active, rtol=RTOL):
         for k in range(m):
             c = members[k]
             i0, j0 = local[pairs[c, 0]] * ns - i_min, local[pairs[c, 1]] * ns - j_min
-            grid[i0:i0 + ns, j0:j0 + ns] = q[c]
+            copy_2d(grid[i0:i0 + ns, j0:j0 + ns], q[c])
         weights = _plateau_middles(grid, q_active, rtol)
         for k in range(m):
             c = members[k]
             i0, j0 = local[pairs[c, 0]] * ns - i_min, local[pairs[c, 1]] * ns - j_min
-            W[c] = weights[i0:i0 + ns, j0:j0 + ns]
+            copy_2d(W[c], weights[i0:i0 + ns, j0:j0 + ns])
     return W
 
 
@@ -715,8 +716,8 @@ def approach_ratio(x0, fields, ne, pairs, slack, at_least=0.0):
     dxs, dys = np.empty((F, E, ns)), np.empty((F, E, ns))
     for f in range(F):
         D = _pair_points(fields[f], conn, R, pairs)
-        dxs[f] = D[:, :, 0]
-        dys[f] = D[:, :, 1]
+        copy_2d(dxs[f], D[:, :, 0])
+        copy_2d(dys[f], D[:, :, 1])
     # bounds: the room of a pair is at least the distance of the point boxes less R1 + R2
     # plus s, its approach at most the sum over the fields of the two points' motions
     box = _point_boxes(X, pairs, E)
@@ -980,7 +981,7 @@ def frozen_set_at(x, motion, ne, law):
     ns = ne.R.shape[1]
     W = np.empty((pairs.shape[0], ns, ns))
     for p in range(pairs.shape[0]):
-        W[p] = arc_length_weights(ne, pairs[p, 0], pairs[p, 1])
+        copy_2d(W[p], arc_length_weights(ne, pairs[p, 0], pairs[p, 1]))
     return pairs, W, count
 
 

@@ -20,6 +20,7 @@ again: the same sum at the same state, so the result is the same either way.
 import numpy as np
 
 from beamcontact._native import njit
+from beamcontact.arrays_native import copy_1d, copy_2d
 from beamcontact.assembly import native_model as nmod
 from beamcontact.contact import step_set_native as ssn
 from beamcontact.dynamics.control import (
@@ -129,20 +130,30 @@ def run(nm, ne, law, has_contact, system, no_contact, newton, ctl, limits, u, v,
         ctl[ITERATIONS] += counts[C_ITERATIONS]
         outcome = decide(ctl, values, counts, h, limits)
         if outcome == STOP:
-            last_values[:] = values
-            last_counts[:] = counts
+            copy_1d(last_values, values)
+            copy_1d(last_counts, counts)
             return STOPPED
         if outcome != ACCEPT:
             continue
-        u[:], v[:], a[:], f_pot[:] = nu, nv, na, nf
-        theta[:], tangent[:] = ntheta, ntangent
+        copy_1d(u, nu)
+        copy_1d(v, nv)
+        copy_1d(a, na)
+        copy_1d(f_pot, nf)
+        copy_1d(theta, ntheta)
+        copy_2d(tangent, ntangent)
         e_kin = values[V_KIN]
         if has_contact:
             known_pairs, known_W, known_e = frozen[2], frozen[3], values[V_CONTACT]
             tried_e = np.nan
         k = made[0]
-        out_u[k], out_v[k], out_a[k], out_f[k] = nu, nv, na, nf
-        out_theta[k], out_tangent[k] = ntheta, ntangent
-        out_values[k], out_counts[k], out_ctl[k] = values, counts, ctl
+        copy_1d(out_u[k], nu)
+        copy_1d(out_v[k], nv)
+        copy_1d(out_a[k], na)
+        copy_1d(out_f[k], nf)
+        copy_1d(out_theta[k], ntheta)
+        copy_2d(out_tangent[k], ntangent)
+        copy_1d(out_values[k], values)
+        copy_1d(out_counts[k], counts)
+        copy_1d(out_ctl[k], ctl)
         made[0] = k + 1
     return BUDGET

@@ -8,6 +8,11 @@ it: 10 000 elements cost seconds a beam. Here the current arrays live in gap buf
 their final size: a prefix at the front and the suffix not yet reached at the back, so
 an insertion moves only the points it changes. An insertion at u changes control points
 from span(u) - p on, and every later knot is larger, so what lies before is final.
+
+Arrays are copied element by element, never as ``a[i] = b[j]`` of rows or slices: such an
+assignment makes Numba compile its error message for mismatched shapes (string
+formatting of the shapes), 2 s of this module's 3 s of compilation with empty caches
+(docs/engines.md, "Compilation").
 """
 
 import numpy as np
@@ -22,14 +27,28 @@ def _get(buf, m, shift, i):
 
 
 @njit
+def _index(m, shift, i):
+    """The row of buf holding row i of the logical array buf[:m] + buf[m + shift:]."""
+    return i if i < m else i + shift
+
+
+@njit
+def _copy_row(dst, i, src, j):
+    """dst[i, :] = src[j, :]."""
+    for d in range(dst.shape[1]):
+        dst[i, d] = src[j, d]
+
+
+@njit
 def _move_boundary(buf, m, shift, target):
-    """The gap buffer's prefix moved to end at ``target``; returns the new m."""
+    """The gap buffer's prefix moved to end at ``target``; returns the new m (buf of
+    rows, (n, d))."""
     while m < target:
-        buf[m] = buf[m + shift]
+        _copy_row(buf, m, buf, m + shift)
         m += 1
     while m > target:
         m -= 1
-        buf[m + shift] = buf[m]
+        _copy_row(buf, m + shift, buf, m)
     return m
 
 
@@ -43,11 +62,15 @@ def insert_sorted_into(degree, knots, pw, values, counts, knots_out, pw_out):
     n_k, n_p = knots.shape[0], pw.shape[0]
     total_k, total_p = knots_out.shape[0], pw_out.shape[0]
     # gap buffers: the logical array is buf[:m] followed by buf[m + shift:]
-    knots_out[total_k - n_k:] = knots
-    pw_out[total_p - n_p:] = pw
+    kn = knots_out.reshape(-1, 1)  # rows of one knot, for _move_boundary
+    for i in range(n_k):
+        knots_out[total_k - n_k + i] = knots[i]
+    for i in range(n_p):
+        _copy_row(pw_out, total_p - n_p + i, pw, i)
     mk, shift_k = 0, total_k - n_k
     mp, shift_p = 0, total_p - n_p
-    r = np.empty((p + 1, pw.shape[1]))
+    dim = pw.shape[1]
+    r = np.empty((p + 1, dim))
     for j in range(values.shape[0]):
         u, times = values[j], counts[j]
         nk = total_k - shift_k  # the current number of knots
@@ -81,23 +104,24 @@ def insert_sorted_into(degree, knots, pw, values, counts, knots_out, pw_out):
         # the points that change: P[k-p .. k-s]; those before stay, those after shift
         mp = _move_boundary(pw_out, mp, shift_p, k - s)
         for i in range(p - s + 1):
-            r[i] = _get(pw_out, mp, shift_p, k - p + i)
+            _copy_row(r, i, pw_out, _index(mp, shift_p, k - p + i))
         for jj in range(1, times + 1):
             L = k - p + jj
             for i in range(p - jj - s + 1):
                 alpha = ((u - _get(knots_out, mk, shift_k, L + i))
                          / (_get(knots_out, mk, shift_k, i + k + 1)
                             - _get(knots_out, mk, shift_k, L + i)))
-                r[i] = alpha * r[i + 1] + (1.0 - alpha) * r[i]
-            pw_out[L] = r[0]
-            pw_out[k + times - jj - s] = r[p - jj - s]
+                for d in range(dim):
+                    r[i, d] = alpha * r[i + 1, d] + (1.0 - alpha) * r[i, d]
+            _copy_row(pw_out, L, r, 0)
+            _copy_row(pw_out, k + times - jj - s, r, p - jj - s)
         L = k - p + times
         for i in range(L + 1, k - s):
-            pw_out[i] = r[i - L]
+            _copy_row(pw_out, i, r, i - L)
         # the prefix now ends after Q[k - s + times - 1]; the suffix (P[k-s:]) stays put
         mp = k - s + times
         shift_p -= times
-        mk = _move_boundary(knots_out, mk, shift_k, k + 1)
+        mk = _move_boundary(kn, mk, shift_k, k + 1)
         for i in range(times):
             knots_out[mk + i] = u
         mk += times

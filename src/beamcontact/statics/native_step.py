@@ -15,6 +15,7 @@ engine uses.
 import numpy as np
 
 from beamcontact._native import njit
+from beamcontact.arrays_native import copy_1d
 from beamcontact.assembly import native_model as nmod
 from beamcontact.assembly.model import LoadState
 from beamcontact.dynamics.native_step import (
@@ -55,7 +56,7 @@ def load_step(nm, contact, position, positions, free_layout, band, B, C, D, ipiv
     out = (iterations, converged, ||r||, ||r_0||). Converged: ||r|| <= rtol ||r_0|| or
     max |du| <= utol_abs; a NaN or the iteration limit fails."""
     n = u0.shape[0]
-    u[:] = u0
+    copy_1d(u, u0)
     r, r_layout, du = np.empty(n), np.empty(n), np.empty(n)
     k_blocks = np.empty((nm.block_dofs.shape[0], nm.block_dofs.shape[1],
                          nm.block_dofs.shape[1]))
