@@ -4,14 +4,30 @@ the rigid obstacles, which do not move, once in ``obstacles.vtu``.
 Point data: ``displacement`` (3-vector, z = 0), ``radius`` (section half-depth, for the
 Tube filter); cell data: ``beam`` (index of the beam in the case); in obstacles.vtu,
 ``obstacle`` (index of the obstacle in the case).
+
+beams.pvd is valid after every snapshot: its entry is written over the closing tags,
+which follow it, so a snapshot costs the same however many came before (rewriting the
+whole series each time cost 1 us per earlier snapshot: 2.4 ms a snapshot after 2000).
 """
 
+import contextlib
+import os
 import re
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import meshio
 import numpy as np
+
+_HEAD = (b'<?xml version="1.0"?>\n'
+         b'<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+         b"  <Collection>\n")
+_TAIL = b"  </Collection>\n</VTKFile>\n"
+
+
+def _entry(t: float, file: str) -> bytes:
+    """The line of beams.pvd for the snapshot in ``file`` at time or load factor t."""
+    return f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(file)}/>\n'.encode()
 
 
 class VtkSeries:
@@ -27,6 +43,8 @@ class VtkSeries:
         self._x_ref = x_ref
         self._radii = radii
         self._entries: list[tuple[float, str]] = []
+        # where the closing tags of beams.pvd begin, as this series last wrote it
+        self._tail_at: int | None = None
         # a continued run appends to the series of beams.pvd; without a readable one
         # (missing, damaged) ``resumed`` is False and the caller writes the series again
         self.resumed = False
@@ -65,13 +83,23 @@ class VtkSeries:
             pts, self._cells, point_data={"displacement": pts - self._ref_pts, "radius": radius},
             cell_data={"beam": [self._beam_ids]}))
         self._entries.append((parameter, name))
-        lines = ['<?xml version="1.0"?>',
-                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-                 "  <Collection>"]
-        lines += [f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(f)}/>'
-                  for t, f in self._entries]
-        lines += ["  </Collection>", "</VTKFile>", ""]
-        (self.out_dir / "beams.pvd").write_text("\n".join(lines), encoding="utf-8")
+        self._add_to_series(_entry(parameter, name))
+
+    def _add_to_series(self, entry: bytes) -> None:
+        """beams.pvd with ``entry`` (the newest, already in self._entries) added: written
+        over the closing tags of the file as this series left it, or the whole series
+        written anew (the first snapshot, a continued run, a file changed meanwhile)."""
+        path = self.out_dir / "beams.pvd"
+        if self._tail_at is not None:
+            with contextlib.suppress(FileNotFoundError), open(path, "r+b") as f:
+                if f.seek(0, os.SEEK_END) == self._tail_at + len(_TAIL):
+                    f.seek(self._tail_at)
+                    f.write(entry + _TAIL)
+                    self._tail_at += len(entry)
+                    return
+        head = _HEAD + b"".join(_entry(t, f) for t, f in self._entries)
+        path.write_bytes(head + _TAIL)
+        self._tail_at = len(head)
 
 
 def write_obstacles(path: Path, obstacles, lo, hi) -> None:
