@@ -34,14 +34,10 @@ _NATIVE_RUN = """
 import sys, tomllib
 from pathlib import Path
 import beamcontact
-import beamcontact.record
 from beamcontact.io.case import parse_case
 from beamcontact.record import RunRecord
 from beamcontact.runner import run_case
 
-# the imports of the run itself: not those of the thread that imports the figures' modules
-# while the steps run
-beamcontact.record._import_figures = lambda: None
 RunRecord.plots = lambda self: print("before plots:", sorted(
     m for m in ("jax", "matplotlib") if m in sys.modules))
 beamcontact.enable_x64()
@@ -60,7 +56,7 @@ for path, changes in [("examples/free_fall/case_cg.toml", {"t_end": 0.76}),
 def test_a_native_run_imports_no_jax(tmp_path):
     """The native engine's runs (dynamics with either law, statics) import neither JAX
     nor matplotlib before they draw (beamcontact/_jax.py): 0.45 s and 0.4 s of every
-    run (matplotlib only in a thread of its own while the steps run). The engine is
+    run. The engine is
     asked for by name: "auto" picks the JAX engine on a machine with a JAX GPU plugin
     (as on the lent H200 where this test once failed for that)."""
     repo = Path(__file__).resolve().parents[1]

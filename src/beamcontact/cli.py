@@ -257,7 +257,7 @@ def _collect_during_steps(progress):
     report of accepted steps moves what exists then out of the collector's sight
     (``gc.freeze``) and starts it, since a long run may make cyclic garbage; the report
     that the steps reached the end pauses it again for the figures (matplotlib's
-    objects, imported while the steps ran) and the exit, which free everything anyway.
+    objects) and the exit, which free everything anyway.
     A run that stops early draws its figures with the collector running. After the
     command the collector is as it was before (:func:`_collector_paused`)."""
     def report(info):

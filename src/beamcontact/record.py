@@ -12,7 +12,6 @@ step.
 import math
 import os
 import re
-import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -32,21 +31,6 @@ from beamcontact.io.results import (
 )
 from beamcontact.io.vtk import VtkSeries, write_obstacles
 from beamcontact.setup.model import Discretization, point_sampler, polyline_matrix
-
-
-def _import_figures() -> None:
-    """Import what the figures need (matplotlib and Pillow: about 0.4 s) while the steps
-    run: the compiled time loop releases the GIL, so on the native engine the import takes
-    no wall time of its own. A failure here is left to the figures to report."""
-    with suppress(Exception):
-        import matplotlib.backends.backend_agg  # noqa: F401
-        import matplotlib.patches  # noqa: F401
-        from matplotlib import font_manager
-        from PIL import ImageDraw, ImageFont  # noqa: F401
-
-        import beamcontact.plot  # noqa: F401
-
-        font_manager.findfont("DejaVu Sans")
 
 
 def _reason(exc: Exception) -> str:
@@ -173,8 +157,6 @@ class RunRecord:
         if out_dir is not None:
             with writing(f"the results in {out_dir}", self):
                 self.files = _Files(self, out_dir, case_text, n_dof, resume)
-            self._figures = threading.Thread(target=_import_figures, name="figures-import")
-            self._figures.start()
         if resume is not None and out_dir is not None:
             self._read_back(out_dir, resume)
             if not self.files.vtk.resumed:  # beams.pvd missing or damaged: from results.h5
@@ -310,7 +292,6 @@ class RunRecord:
             self._plots()
 
     def _plots(self) -> None:
-        self._figures.join()
         from beamcontact.plot import (
             animate,
             plot_energies,
