@@ -220,8 +220,10 @@ def fake_runner(monkeypatch):
 
     calls = {}
 
-    def run_case(case, text, out, progress, restart=False, overwrite=False):
+    def run_case(case, text, out, progress, restart=False, overwrite=False,
+                 fork_figures=False):
         calls["progress"] = progress
+        calls["fork_figures"] = fork_figures
         return calls["do"](progress)
 
     module = types.ModuleType("beamcontact.runner")
@@ -242,6 +244,8 @@ def test_run_hands_a_progress_info_callback_to_the_runner(fake_runner, tmp_path)
     assert result.exit_code == 0, result.output
     assert result.stdout.count("Free fall of an elastic beam onto another beam") == 1
     assert "completed: t_end reached" in result.stdout
+    # the command line's process is its own: half of its figures in a forked copy
+    assert fake_runner["fork_figures"] is True
     assert max(len(line) for line in result.stdout.splitlines()) <= WIDTH
 
 

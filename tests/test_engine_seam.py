@@ -38,7 +38,7 @@ from beamcontact.io.case import parse_case
 from beamcontact.record import RunRecord
 from beamcontact.runner import run_case
 
-RunRecord.plots = lambda self: print("before plots:", sorted(
+RunRecord.plots = lambda self, fork=False: print("before plots:", sorted(
     m for m in ("jax", "matplotlib") if m in sys.modules))
 beamcontact.enable_x64()
 for path, changes in [("examples/free_fall/case_cg.toml", {"t_end": 0.76}),

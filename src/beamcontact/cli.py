@@ -225,7 +225,7 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
     try:
         with progress_bar(title, enabled=show) as progress:
             return run_case(parsed, text, out, _collect_during_steps(progress),
-                            restart=restart, overwrite=overwrite)
+                            restart=restart, overwrite=overwrite, fork_figures=True)
     except CaseError as exc:
         _fail(str(exc), 2)
     except OutputError as exc:

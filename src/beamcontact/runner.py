@@ -110,14 +110,14 @@ class _Tally:
 
 def run_case(case: Case, case_text: str, out_dir: Path | None,
              progress: Progress | None = None, restart: bool = False,
-             overwrite: bool = False) -> dict:
+             overwrite: bool = False, fork_figures: bool = False) -> dict:
     """Run ``case``, write its results into ``out_dir`` (if given); returns the summary."""
-    return execute(case, case_text, out_dir, progress, restart, overwrite)[0]
+    return execute(case, case_text, out_dir, progress, restart, overwrite, fork_figures)[0]
 
 
 def execute(case: Case, case_text: str, out_dir: Path | None,
             progress: Progress | None = None, restart: bool = False,
-            overwrite: bool = False) -> tuple[dict, RunRecord]:
+            overwrite: bool = False, fork_figures: bool = False) -> tuple[dict, RunRecord]:
     """Run ``case``; returns the summary and the run's in-memory record.
 
     ``case_text`` is the TOML stored in results.h5 and written as ``case.toml`` (the case
@@ -125,6 +125,9 @@ def execute(case: Case, case_text: str, out_dir: Path | None,
     after every accepted step. The run holds ``out_dir`` throughout
     (:func:`~beamcontact.io.output_folder.claimed`: one run per folder; earlier results
     are refused unless ``restart`` continues them or ``overwrite`` replaces them).
+    ``fork_figures``: half of the figures drawn in a forked copy of the process
+    (:meth:`~beamcontact.record.RunRecord.plots`), for a process of our own (the
+    command line), not a user's or a sweep's worker.
 
     BLAS/LAPACK (OpenBLAS, used by JAX's CPU linear solves) runs on one thread during the
     run: the summation order of a threaded LU depends on the thread count, and in the
@@ -140,11 +143,12 @@ def execute(case: Case, case_text: str, out_dir: Path | None,
 
     with claimed(out_dir, restart=restart, overwrite=overwrite), \
             threadpool_limits(limits=1, user_api="blas"):
-        return _execute(case, case_text or case.to_toml(), out_dir, progress, restart)
+        return _execute(case, case_text or case.to_toml(), out_dir, progress, restart,
+                        fork_figures)
 
 
 def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progress | None,
-             restart: bool) -> tuple[dict, RunRecord]:
+             restart: bool, fork_figures: bool) -> tuple[dict, RunRecord]:
     require_x64()
     if restart and case.analysis.kind != "dynamic":
         raise CaseError("--restart continues dynamic runs only (analysis.kind = \"dynamic\")")
@@ -158,7 +162,7 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     warnings = _start_warnings(prepared, restart)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
     try:
-        summary, record = run(prepared, case_text, out_dir, progress, restart)
+        summary, record = run(prepared, case_text, out_dir, progress, restart, fork_figures)
     except OutputError as exc:  # before the first step: the summary says so, if it can
         if out_dir is not None:
             with suppress(OSError):
@@ -251,7 +255,7 @@ def _check_initial_overlap(case: Case, model: Model, contact) -> list[str]:
 
 
 def _run_static(prepared: Prepared, case_text, out_dir, progress,
-                _restart) -> tuple[dict, RunRecord]:
+                _restart, fork_figures) -> tuple[dict, RunRecord]:
     case, disc, model = prepared.case, prepared.disc, prepared.model
     rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "load_factor",
                     ENERGY_COLUMNS)
@@ -284,7 +288,7 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress,
     except OutputError as exc:
         summary = {**tally.failed_output("load_factor", exc),
                    "final_load_factor": tally.reached}
-    _finish(rec, summary)
+    _finish(rec, summary, fork_figures)
     return {**summary, "extremes": rec.extremes()}, rec
 
 
@@ -297,13 +301,13 @@ def _rejections(before: np.ndarray, since: dict) -> dict:
     return {k: n for k, n in total.items() if n > 0}
 
 
-def _finish(rec: RunRecord, summary: dict) -> None:
+def _finish(rec: RunRecord, summary: dict, fork_figures: bool) -> None:
     """Close the files and draw the figures; a failure of either ends the run as
     "output_failed" (the summary says so, with what was kept). An interrupt while
     drawing (a second Ctrl-C, or a signal) skips the figures, never the summary."""
     try:
         rec.close()
-        rec.plots()
+        rec.plots(fork_figures)
     except OutputError as exc:
         if summary["status"] == "completed":
             summary.update(status="output_failed",
@@ -453,7 +457,7 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
 
 
 def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
-                 restart) -> tuple[dict, RunRecord]:
+                 restart, fork_figures) -> tuple[dict, RunRecord]:
     case, contact = prepared.case, prepared.contact
     an = case.analysis
     interval = case.output.vtk_interval or an.t_end / 100.0
@@ -498,7 +502,7 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
     except OutputError as exc:
         summary = {**tally.failed_output("t", exc), "rejections": tally.rejections(),
                    "t_final": tally.reached}
-    _finish(rec, summary)
+    _finish(rec, summary, fork_figures)
     summary["restarted_from_step"] = start.step0 if restart else None
     summary["mean_iterations_per_step"] = summary["newton_iterations"] / max(summary["steps"], 1)
     return {**summary, **_dynamic_results(rec, contact)}, rec
