@@ -12,8 +12,9 @@ import pytest
 
 from beamcontact import record
 
-fork_only = pytest.mark.skipif(not hasattr(os, "fork") or (os.cpu_count() or 1) < 2,
-                               reason="needs os.fork and a second core")
+fork_only = pytest.mark.skipif(not sys.platform.startswith("linux")
+                               or (os.cpu_count() or 1) < 2,
+                               reason="forks on Linux with a second core only")
 
 
 @pytest.fixture(autouse=True)

@@ -45,9 +45,8 @@ def _side_by_side(first: list, second: list, fork: bool) -> None:
     a run take half the time). If the copy cannot be made, fails, or has not finished
     FORK_GRACE_FACTOR times the time of ``first`` after it (at least FORK_GRACE_S), it
     is stopped and ``second`` is called here, so that its errors are raised here. An
-    exception here (an interrupt) stops the copy and calls nothing more. Without
-    ``os.fork`` (Windows), a second core, or with JAX imported, everything is called
-    here."""
+    exception here (an interrupt) stops the copy and calls nothing more. On a system
+    other than Linux, with one core or with JAX imported, everything is called here."""
     pid = _forked(second) if fork and second else None
     try:
         start = time.monotonic()
@@ -68,9 +67,11 @@ def _forked(calls: list) -> int | None:
     """The process id of a forked copy that makes ``calls`` and exits (0: all made),
     None if none could be made. The copy writes nothing to this process's streams and
     never returns into the caller."""
-    # JAX's threads (the JAX engine) may hold locks a copy would wait for, and JAX warns
-    # at every fork; the native path imports no JAX
-    if not hasattr(os, "fork") or (os.cpu_count() or 1) < 2 or "jax" in sys.modules:
+    # Linux only (macOS's system libraries are not safe in a forked copy); JAX's threads
+    # (the JAX engine) may hold locks a copy would wait for, and JAX warns at every fork
+    # (the native path imports no JAX)
+    if (not sys.platform.startswith("linux") or (os.cpu_count() or 1) < 2
+            or "jax" in sys.modules):
         return None
     try:
         pid = os.fork()
