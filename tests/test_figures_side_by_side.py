@@ -93,8 +93,12 @@ def test_a_hanging_copy_is_stopped_and_its_half_drawn_here(tmp_path, monkeypatch
 
 
 @fork_only
-def test_an_interrupt_stops_the_copy_and_draws_nothing_more(tmp_path):
+def test_an_interrupt_stops_the_copy_and_draws_nothing_more(tmp_path, monkeypatch):
     here = os.getpid()
+    copies = []
+    forked = record._forked
+    monkeypatch.setattr(record, "_forked", lambda calls: copies.append(forked(calls))
+                        or copies[-1])
 
     def interrupted():
         raise KeyboardInterrupt
@@ -107,5 +111,6 @@ def test_an_interrupt_stops_the_copy_and_draws_nothing_more(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         record._side_by_side([interrupted], [slow_in_the_copy], fork=True)
     assert not (tmp_path / "c").exists()
+    assert copies and copies[0] > 0
     with pytest.raises(ChildProcessError):  # stopped and collected
-        os.waitpid(-1, os.WNOHANG)
+        os.waitpid(copies[0], os.WNOHANG)
