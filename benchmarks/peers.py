@@ -150,14 +150,16 @@ def _drop_case_file(model: str, t_end: float, E: float, folder: Path,
     return path
 
 
-def _deviation(ref: Path, other: Path, t_end: float) -> float:
-    """Largest |A_uy difference| [m] between two result CSVs on a common grid."""
-    grid = np.linspace(0.0, t_end, 4001)
-    curves = []
-    for p in (ref, other):
-        d = np.genfromtxt(p, delimiter=",", names=True)
-        curves.append(np.interp(grid, d["t"], d["A_uy"]))
-    return float(np.max(np.abs(curves[0] - curves[1])))
+def _deviations(ref: Path, other: Path, ends: list[float]) -> list[float]:
+    """Largest |A_uy difference| [m] between two result CSVs from t = 0 to each of
+    ``ends`` (on a common grid of each window)."""
+    d_ref, d_other = (np.genfromtxt(p, delimiter=",", names=True) for p in (ref, other))
+    out = []
+    for end in ends:
+        grid = np.linspace(0.0, end, 4001)
+        out.append(float(np.max(np.abs(np.interp(grid, d_ref["t"], d_ref["A_uy"])
+                                       - np.interp(grid, d_other["t"], d_other["A_uy"])))))
+    return out
 
 
 # the peer drop's histories part after its second contact episode (about 1.25 s) by
@@ -178,9 +180,8 @@ def _table(title: str, rows: list[dict], t_end: float | None,
     print("|---|---|---|---|---|---|---|---|" + ("---|" if until is not None else ""))
     ref = rows[0]
     for r in rows:
-        dev = "" if t_end is None else f"{100 * _deviation(ref['csv'], r['csv'], t_end):.2f}"
-        if until is not None:
-            dev += f" | {100 * _deviation(ref['csv'], r['csv'], until):.2f}"
+        ends = [] if t_end is None else [t_end] + ([] if until is None else [until])
+        dev = " | ".join(f"{100 * d:.2f}" for d in _deviations(ref["csv"], r["csv"], ends))
         loop = r.get("loop", r["time"])
         print(f"| {r['code']} | {r['process']:.2f} | {loop:.2f} | "
               f"{ref['process'] / r['process']:.2f} | "

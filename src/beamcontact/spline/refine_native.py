@@ -9,7 +9,8 @@ their final size: a prefix at the front and the suffix not yet reached at the ba
 an insertion moves only the points it changes. An insertion at u changes control points
 from span(u) - p on, and every later knot is larger, so what lies before is final.
 
-Arrays are copied element by element, never as ``a[i] = b[j]`` of rows or slices: such an
+Rows are copied element by element (:func:`~beamcontact.arrays_native.copy_1d`), never
+as ``a[i] = b[j]``: such an
 assignment makes Numba compile its error message for mismatched shapes (string
 formatting of the shapes), 2 s of this module's 3 s of compilation with empty caches
 (docs/engines.md, "Compilation").
@@ -18,6 +19,7 @@ formatting of the shapes), 2 s of this module's 3 s of compilation with empty ca
 import numpy as np
 
 from beamcontact._native import njit
+from beamcontact.arrays_native import copy_1d
 
 
 @njit
@@ -33,22 +35,15 @@ def _index(m, shift, i):
 
 
 @njit
-def _copy_row(dst, i, src, j):
-    """dst[i, :] = src[j, :]."""
-    for d in range(dst.shape[1]):
-        dst[i, d] = src[j, d]
-
-
-@njit
 def _move_boundary(buf, m, shift, target):
     """The gap buffer's prefix moved to end at ``target``; returns the new m (buf of
     rows, (n, d))."""
     while m < target:
-        _copy_row(buf, m, buf, m + shift)
+        copy_1d(buf[m], buf[m + shift])
         m += 1
     while m > target:
         m -= 1
-        _copy_row(buf, m + shift, buf, m)
+        copy_1d(buf[m + shift], buf[m])
     return m
 
 
@@ -66,7 +61,7 @@ def insert_sorted_into(degree, knots, pw, values, counts, knots_out, pw_out):
     for i in range(n_k):
         knots_out[total_k - n_k + i] = knots[i]
     for i in range(n_p):
-        _copy_row(pw_out, total_p - n_p + i, pw, i)
+        copy_1d(pw_out[total_p - n_p + i], pw[i])
     mk, shift_k = 0, total_k - n_k
     mp, shift_p = 0, total_p - n_p
     dim = pw.shape[1]
@@ -104,7 +99,7 @@ def insert_sorted_into(degree, knots, pw, values, counts, knots_out, pw_out):
         # the points that change: P[k-p .. k-s]; those before stay, those after shift
         mp = _move_boundary(pw_out, mp, shift_p, k - s)
         for i in range(p - s + 1):
-            _copy_row(r, i, pw_out, _index(mp, shift_p, k - p + i))
+            copy_1d(r[i], pw_out[_index(mp, shift_p, k - p + i)])
         for jj in range(1, times + 1):
             L = k - p + jj
             for i in range(p - jj - s + 1):
@@ -113,11 +108,11 @@ def insert_sorted_into(degree, knots, pw, values, counts, knots_out, pw_out):
                             - _get(knots_out, mk, shift_k, L + i)))
                 for d in range(dim):
                     r[i, d] = alpha * r[i + 1, d] + (1.0 - alpha) * r[i, d]
-            _copy_row(pw_out, L, r, 0)
-            _copy_row(pw_out, k + times - jj - s, r, p - jj - s)
+            copy_1d(pw_out[L], r[0])
+            copy_1d(pw_out[k + times - jj - s], r[p - jj - s])
         L = k - p + times
         for i in range(L + 1, k - s):
-            _copy_row(pw_out, i, r, i - L)
+            copy_1d(pw_out[i], r[i - L])
         # the prefix now ends after Q[k - s + times - 1]; the suffix (P[k-s:]) stays put
         mp = k - s + times
         shift_p -= times
