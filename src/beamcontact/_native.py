@@ -496,6 +496,17 @@ def njit(func):
     return _compiled(func)
 
 
+def njit_uncounted(func):
+    """:func:`njit` for a kernel that allocates nothing and keeps no array beyond the
+    call (the linear solver's factorisations, a contact block with its work arrays):
+    compiled without reference counting (Numba's ``_nrt=False``), so that its views
+    (``band[j]``, ``W[i]``, a row of its work arrays) cost no atomic increments and
+    decrements; its callers hold every array it is given. Numba rejects an allocation
+    in such a kernel when it compiles it (a typing error). The arithmetic is the same,
+    bit for bit."""
+    return _compiled(func, _nrt=False)
+
+
 def njit_inline(func):
     """:func:`njit` with ``inline="always"``, for the small helpers of the element
     kernels: Numba copies the function into each compiled caller, so no call passes

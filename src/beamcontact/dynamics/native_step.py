@@ -320,7 +320,8 @@ def contact_energy(nm, contact, u):
     ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff = contact
     energies = np.empty(pairs.shape[0])
     blocks_native.blocks_energy(nmod._positions(nm.x_ref, u), ce_conn, ce_R, pairs, W, R12,
-                                amps, law, m, q_reg, cutoff, energies)
+                                amps, law, m, q_reg, cutoff, energies,
+                                blocks_native.blocks_scratch(ce_conn, ce_R, pairs.shape[0]))
     energy = 0.0
     for p in range(pairs.shape[0]):
         energy += energies[p]
@@ -350,7 +351,8 @@ def contact_blocks(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
     n_pairs = pairs.shape[0]
     F, K, energies = np.empty((n_pairs, k2)), np.empty((n_pairs, k2, k2)), np.empty(n_pairs)
     blocks_native.blocks_into(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
-                              F, K, energies, kl >= 0)
+                              F, K, energies, kl >= 0,
+                              blocks_native.blocks_scratch(ce_conn, ce_R, n_pairs))
     dofs = np.empty(k2, dtype=np.int64)
     energy = 0.0
     for p in range(n_pairs):

@@ -65,7 +65,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._native import njit, njit_inline
+from beamcontact._native import njit, njit_inline, njit_uncounted
 
 
 class BorderedLayout(NamedTuple):
@@ -145,7 +145,7 @@ def _check_widths(band, kl, ku):
         raise ValueError("kl, ku do not match the band storage (2 kl + ku + 1 columns)")
 
 
-@njit
+@njit_uncounted
 def zero(band, B, C, D, coupled=True):
     """Set the system to zero (fill-in rows of the band included); ``coupled`` False:
     B and C are left as they are, for a system that :func:`factor` and :func:`solve`
@@ -194,7 +194,7 @@ def add_block(band, B, C, D, kl, ku, dofs, k_local):
                 D[i - n_b, j - n_b] += v
 
 
-@njit
+@njit_uncounted
 def add_blocks(band, B, C, D, kl, ku, dofs, blocks):
     """:func:`add_block` for each block: dofs (n_blocks, k), blocks (n_blocks, k, k)."""
     for e in range(dofs.shape[0]):
@@ -302,7 +302,7 @@ def matvec(band, B, C, D, kl, ku, x, y):
 # ---------------------------------------------------------------- banded LU
 
 
-@njit
+@njit_uncounted
 def band_lu(band, kl, ku, ipiv):
     """A = P L U in place: LAPACK dgbtf2 (Golub & Van Loan sec. 4.3, band Gaussian
     elimination with pivoting), right-looking, one column at a time. Returns 0, or j + 1
@@ -355,7 +355,7 @@ def band_lu(band, kl, ku, ipiv):
     return 0
 
 
-@njit
+@njit_uncounted
 def band_solve(band, kl, ku, ipiv, x):
     """x <- A^{-1} x with the factors of :func:`band_lu` (LAPACK dgbtrs, no transpose):
     the interchanges and L forward, then U (bandwidth kl + ku) backward by columns, which
@@ -381,7 +381,7 @@ def band_solve(band, kl, ku, ipiv, x):
                 x[i] -= band[j, kv + i - j] * xj
 
 
-@njit
+@njit_uncounted
 def band_solve_rows(band, kl, ku, ipiv, X):
     """X <- A^{-1} X for X (n_b, r), all columns at once: every operation of
     :func:`band_solve` on a scalar becomes one on a contiguous row of X.
@@ -440,7 +440,7 @@ def band_solve_rows(band, kl, ku, ipiv, X):
 # ---------------------------------------------------------------- dense LU
 
 
-@njit
+@njit_uncounted
 def dense_lu(D, ipiv):
     """D = P L U in place, right-looking with partial pivoting (LAPACK dgetf2; Golub &
     Van Loan sec. 3.4), whole rows interchanged so that the row-major updates run along
@@ -486,7 +486,7 @@ def dense_lu(D, ipiv):
     return 0
 
 
-@njit
+@njit_uncounted
 def dense_solve(D, ipiv, y):
     """y <- S^{-1} y with the factors of :func:`dense_lu` (LAPACK dgetrs)."""
     m = D.shape[0]
@@ -511,7 +511,7 @@ def dense_solve(D, ipiv, y):
 # ---------------------------------------------------------------- bordered system
 
 
-@njit
+@njit_uncounted
 def factor(band, B, C, D, kl, ku, ipiv, ipiv_s, coupled=True):
     """Factorise K in place (module docstring): band LU of A, B <- X = A^{-1} B,
     D <- LU of S = D - C X. Returns 0, j + 1 for a zero pivot in column j of A, or
@@ -550,7 +550,7 @@ def factor(band, B, C, D, kl, ku, ipiv, ipiv_s, coupled=True):
     return 0
 
 
-@njit
+@njit_uncounted
 def solve(band, B, C, D, kl, ku, ipiv, ipiv_s, rhs, x, coupled=True):
     """x = K^{-1} rhs with the factors of a successful :func:`factor` (rhs unchanged; it
     may be x itself); ``coupled`` as there."""

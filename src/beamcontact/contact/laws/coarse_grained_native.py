@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from beamcontact._native import njit
+from beamcontact._native import njit, njit_uncounted
 
 # blocks._pair_law evaluates the law at sqrt(max(s, S_FLOOR)) (no sqrt of 0): below the
 # floor the energy is constant in s, so JAX AD gives f' = f'' = 0 there, and so do these
@@ -114,8 +114,8 @@ def cg_pair_s(s, R12, amplitude, m, q_reg, cutoff):
     return s_derivatives(s, d, phi, d1, d2)
 
 
-@njit
-def cg_pair_s_many(s, count, R12, amplitude, m, q_reg, cutoff, f, f1, f2):
+@njit_uncounted
+def cg_pair_s_many(s, count, R12, amplitude, m, q_reg, cutoff, f, f1, f2, d, inv, base):
     """:func:`cg_pair_s` of each of s[:count] into f, f1, f2 (f, df/ds, d2f/ds2), bitwise
     the same numbers, computed pass by pass over the arrays so that the compiler can
     use SIMD instructions: the square roots and divisions of the law are most of the
@@ -124,16 +124,15 @@ def cg_pair_s_many(s, count, R12, amplitude, m, q_reg, cutoff, f, f1, f2):
     Every element takes the operations of :func:`cg_pair_s`'s common branch (q > q_reg,
     d < cutoff, s above the floor, an exponent 2 n whole and below 64) in the same order;
     the elements of any other branch, and every element when the exponent is not of
-    that kind, are then taken by :func:`cg_pair_s` itself."""
+    that kind, are then taken by :func:`cg_pair_s` itself. d, inv and base: work arrays
+    of at least ``count`` entries (the caller's: an allocation per call cost more than
+    the law at a few pairs)."""
     n = m - 3.5
     twice = 2.0 * n
     if twice != math.floor(twice) or not 0.0 <= twice < 64.0:
         for i in range(count):
             f[i], f1[i], f2[i] = cg_pair_s(s[i], R12, amplitude, m, q_reg, cutoff)
         return
-    d = np.empty(count)
-    inv = np.empty(count)
-    base = np.empty(count)
     for i in range(count):
         si = s[i]
         di = math.sqrt(si if si > S_FLOOR else S_FLOOR)
