@@ -84,6 +84,7 @@ def test_only_one_module_imports_jax():
 
 
 _BLAS_THREADS = """
+import sys
 import tomllib
 from pathlib import Path
 from threadpoolctl import threadpool_info
@@ -93,7 +94,7 @@ from beamcontact.runner import execute
 
 data = tomllib.loads(Path("examples/pinned_beam_vibration/case.toml").read_text())
 data["analysis"]["t_end"] = 0.005
-data["solver"] = {"engine": "jax"}
+data["solver"] = {"engine": sys.argv[1]}
 threads = set()
 beamcontact.enable_x64()
 execute(parse_case(data), "", None, lambda info: threads.update(
@@ -102,13 +103,15 @@ print(sorted(threads))
 """
 
 
-def test_blas_runs_on_one_thread_in_a_fresh_process():
+@pytest.mark.parametrize("engine", ["jax", "native"])
+def test_blas_runs_on_one_thread_in_a_fresh_process(engine):
     """A run limits BLAS to one thread (runner.execute: a threaded LU's round-off
     depends on the thread count), also when JAX, and with it the OpenBLAS its LAPACK
     calls, is first imported inside the run: a limit set before a library is loaded
-    does not reach it."""
+    does not reach it. A native run loads that library too (Numba's compiler imports
+    scipy.linalg.cython_blas), though its kernels call no BLAS."""
     repo = Path(__file__).resolve().parents[1]
-    out = subprocess.run([sys.executable, "-c", _BLAS_THREADS], capture_output=True,
+    out = subprocess.run([sys.executable, "-c", _BLAS_THREADS, engine], capture_output=True,
                          text=True, check=True, cwd=repo)
     assert out.stdout.strip() == "[1]", out.stdout + out.stderr
 
