@@ -43,7 +43,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._native import njit, njit_inline, njit_parallel, njit_parallel_uncounted, prange
+from beamcontact._native import (
+    njit,
+    njit_inline,
+    njit_parallel,
+    njit_parallel_uncounted,
+    njit_uncounted,
+    prange,
+)
 from beamcontact.beam import energy_native, inertia_native, loads_native
 
 
@@ -246,18 +253,15 @@ def _potential(nm, x, lam, theta_n, t_n, r_el, r_out, k_out, tangent=True):
     return e_strain
 
 
-@njit
+@njit_inline
 def _external_forces(nm, x, lam, theta_n, t_n, r_el, r_out, k_out):
     """The rest of :func:`_potential` once the element strain forces are in r_el: gravity
     added to them, the elements' forces added to r_out in element order, then the point
-    loads' forces and blocks (k_out[n_el + i])."""
+    loads' forces and blocks (k_out[n_el + i]). Inlined: a call that takes the
+    NativeModel counts a reference of each of its arrays."""
     n_el = nm.conn.shape[0]
-    R, wq, g_ref, gravity, dofs = nm.R, nm.wq, nm.g_ref, nm.gravity, nm.block_dofs
-    for e in range(n_el):
-        c = lam * nm.rho_area[e] * nm.gravity_on[e]
-        if c != 0.0:  # gravity off: JAX adds exact zeros
-            _gravity_force(R, wq, g_ref, e, c, gravity, r_el[e])
-        _scatter_add(dofs[e], r_el[e], r_out)
+    _add_gravity_elements(nm.R, nm.wq, nm.g_ref, nm.rho_area, nm.gravity_on, nm.gravity,
+                          nm.block_dofs, lam, r_el, r_out)
     n = nm.load_conn.shape[1]
     x_l = np.empty((n, 2))
     r_l = np.empty(2 * n)
@@ -267,6 +271,18 @@ def _external_forces(nm, x, lam, theta_n, t_n, r_el, r_out, k_out):
             x_l, nm.load_R[i], nm.load_dR[i], nm.load_force[i], nm.load_moment[i],
             theta_n[i], t_n[i], lam, r_l, k_out[n_el + i])
         _scatter_add(nm.block_dofs[n_el + i], r_l, r_out)
+
+
+@njit_uncounted
+def _add_gravity_elements(R, wq, g_ref, rho_area, gravity_on, gravity, dofs, lam, r_el,
+                          r_out):
+    """Gravity added to each element's force r_el[e], then the elements' forces added to
+    r_out in element order (no reference counts for the views of an element)."""
+    for e in range(r_el.shape[0]):
+        c = lam * rho_area[e] * gravity_on[e]
+        if c != 0.0:  # gravity off: JAX adds exact zeros
+            _gravity_force(R, wq, g_ref, e, c, gravity, r_el[e])
+        _scatter_add(dofs[e], r_el[e], r_out)
 
 
 @njit
@@ -419,16 +435,24 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
         r_out[i] = c * r_pot_out[i] - alpha * f_pot_n[i]
     if tangent:
         k_out *= c
+    _add_inertia_elements(nm.block_dofs, r_in, k_in, r_out, k_out, tangent)
+    return e_strain
+
+
+@njit_uncounted
+def _add_inertia_elements(block_dofs, r_in, k_in, r_out, k_out, tangent):
+    """The elements' inertia forces r_in[e] added to r_out and (``tangent``) their blocks
+    k_in[e] to k_out[e], in element order (no reference counts for the views of an
+    element)."""
     m = k_in.shape[1]
-    for e in range(n_el):
-        _scatter_add(nm.block_dofs[e], r_in[e], r_out)
+    for e in range(r_in.shape[0]):
+        _scatter_add(block_dofs[e], r_in[e], r_out)
         if tangent:
             # element by element: k_out[e] += k_in[e] compiles Numba's error message for
             # mismatched shapes (1 s with empty caches)
             for i in range(m):
                 for j in range(m):
                     k_out[e, i, j] += k_in[e, i, j]
-    return e_strain
 
 
 @njit_parallel_uncounted
@@ -483,23 +507,30 @@ def kinetic_energy_momentum(nm, u, v):
     """Kinetic energy (translation and rotation of the sections, eq. 18) and linear
     momentum (2,) at displacement u and velocity v (n_dof,), as
     :func:`~beamcontact.assembly.inertia.kinetic_energy_and_momentum`."""
-    x = _positions(nm.x_ref, u)
-    v2 = v.reshape(nm.x_ref.shape)
-    n_el, n = nm.conn.shape
-    x_e, v_e = np.empty((n, 2)), np.empty((n, 2))
-    p, p_e = np.zeros(2), np.empty(2)
+    n = nm.conn.shape[1]
+    p = np.zeros(2)
+    T = _kinetic_elements(_positions(nm.x_ref, u), v.reshape(nm.x_ref.shape), nm.conn,
+                          nm.R, nm.dR, nm.wq, nm.g_ref, nm.rho_area, nm.rho_inertia,
+                          np.empty((n, 2)), np.empty((n, 2)), np.empty(2), p)
+    return T, p
+
+
+@njit_uncounted
+def _kinetic_elements(x, v2, conn, R, dR, wq, g_ref, rho_area, rho_inertia, x_e, v_e, p_e,
+                      p):
+    """:func:`kinetic_energy_momentum`'s sums over the elements in element order: returns
+    T, the momentum added to p (x_e, v_e, p_e: scratch; no reference counts for the views
+    of an element)."""
     T = 0.0
-    for e in range(n_el):
-        _gather(x, nm.conn[e], x_e)
-        _gather(v2, nm.conn[e], v_e)
-        T += inertia_native.element_kinetic_energy(x_e, v_e, nm.R[e], nm.dR[e], nm.wq[e],
-                                                   nm.g_ref[e], nm.rho_area[e],
-                                                   nm.rho_inertia[e])
-        inertia_native.element_momentum(v_e, nm.R[e], nm.wq[e], nm.g_ref[e], nm.rho_area[e],
-                                        p_e)
+    for e in range(conn.shape[0]):
+        _gather(x, conn[e], x_e)
+        _gather(v2, conn[e], v_e)
+        T += inertia_native.element_kinetic_energy(x_e, v_e, R[e], dR[e], wq[e], g_ref[e],
+                                                   rho_area[e], rho_inertia[e])
+        inertia_native.element_momentum(v_e, R[e], wq[e], g_ref[e], rho_area[e], p_e)
         p[0] += p_e[0]
         p[1] += p_e[1]
-    return T, p
+    return T
 
 
 @njit

@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from beamcontact import _native
-from beamcontact._native import CoreShare, Stopwatch, njit
+from beamcontact._native import CoreShare, Stopwatch, njit, njit_uncounted
 from beamcontact.assembly import native_model as nmod
 from beamcontact.assembly.model import LoadState
 from beamcontact.contact import blocks_native
@@ -353,9 +353,20 @@ def contact_blocks(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
     blocks_native.blocks_into(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
                               F, K, energies, kl >= 0,
                               blocks_native.blocks_scratch(ce_conn, ce_R, n_pairs))
-    dofs = np.empty(k2, dtype=np.int64)
+    return _add_contact_blocks(ce_conn, pairs, F, K, energies, scale, position, band, B, C, D,
+                               kl, ku, r_pot, r, np.empty(k2, dtype=np.int64))
+
+
+@njit_uncounted
+def _add_contact_blocks(ce_conn, pairs, F, K, energies, scale, position, band, B, C, D, kl,
+                        ku, r_pot, r, dofs):
+    """The blocks of :func:`contact_blocks` (forces F, tangents K, energies) added to the
+    global forces and the bordered matrix, in block order; returns their energy. No
+    reference counts for the views of a block (dofs: scratch of F's width)."""
+    n_loc = ce_conn.shape[1]
+    k2 = dofs.shape[0]
     energy = 0.0
-    for p in range(n_pairs):
+    for p in range(pairs.shape[0]):
         e1, e2 = pairs[p, 0], pairs[p, 1]
         for a in range(n_loc):
             c1, c2 = ce_conn[e1, a], ce_conn[e2, a]
@@ -369,7 +380,8 @@ def contact_blocks(x, ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff,
         if kl >= 0:
             for i in range(k2):
                 dofs[i] = position[dofs[i]]
-            kb *= scale
+                for j in range(k2):
+                    kb[i, j] *= scale
             bordered.add_block(band, B, C, D, kl, ku, dofs, kb)
     return energy
 
