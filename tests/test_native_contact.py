@@ -250,34 +250,38 @@ def test_cg_block_all_beyond_cutoff_is_zero():
     assert e == 0.0 and not f.any() and not k.any()
 
 
+@pytest.mark.parametrize("law_code", [bn.LAW_CG, bn.LAW_PENALTY])
 @pytest.mark.parametrize("n_pairs", [0, 1, 7, bn.BLOCK_RUNS, bn.BLOCK_RUNS + 1, 41])
-def test_blocks_of_a_set_are_each_block_alone(n_pairs):
-    """blocks_into and blocks_energy (the blocks shared out in runs over the cores, each
-    run reusing one row of work arrays) give each block's numbers as block_into and
-    block_energy give them alone, bit for bit: no stale work array leaks into the next
-    block of a run, whatever the count of blocks against the count of runs."""
+def test_blocks_of_a_set_are_each_block_alone(n_pairs, law_code):
+    """blocks_into (the blocks shared out in runs over the cores, each run reusing one
+    row of work arrays) gives each block's numbers as block_into gives them alone, bit
+    for bit, and blocks_energy the same energies (block_energy alone is checked against
+    block_into above): no stale work array leaks into the next block of a run, whatever
+    the count of blocks against the count of runs."""
     rng = np.random.default_rng(n_pairs)
     n_el, n_s, m = 12, 9, 12.0
     conn = rng.permutation(n_el * N_LOC).reshape(n_el, N_LOC)
     R = np.stack([_element_rows(rng, n_s) for _ in range(n_el)])
     x = np.empty((n_el * N_LOC, 2))
-    for e in range(n_el):  # small elements in a row: neighbours within the cutoff
-        x[conn[e]] = (0.03 * e, 0.0) + rng.uniform(0.0, 0.02, (N_LOC, 2))
+    for e in range(n_el):  # small elements in a row: neighbours overlap, 6 apart are far
+        x[conn[e]] = (0.015 * e, 0.0) + rng.uniform(0.0, 0.02, (N_LOC, 2))
     first = rng.integers(0, n_el, n_pairs)  # with a neighbour, or one far beyond the cutoff
     pairs = np.c_[first, (first + np.where(np.arange(n_pairs) % 2, 1, 6)) % n_el]
     W = rng.uniform(0.0, 1e-2, (n_pairs, n_s, n_s)) * (rng.random((n_pairs, n_s, n_s)) < 0.7)
     R12s = rng.uniform(0.8, 1.2, n_pairs) * R12
-    amps = rng.uniform(0.5, 2.0, n_pairs) * float(_cg(m).amplitude(R1, R2, BETA12))
+    amps = rng.uniform(0.5, 2.0, n_pairs) * (float(_cg(m).amplitude(R1, R2, BETA12))
+                                             if law_code == bn.LAW_CG else 1e6)
     size = 4 * N_LOC
     F, K = np.full((n_pairs, size), np.nan), np.full((n_pairs, size, size), np.nan)
-    energies, alone = np.full(n_pairs, np.nan), np.full(n_pairs, np.nan)
+    energies, energies_only = np.full(n_pairs, np.nan), np.full(n_pairs, np.nan)
     ws = bn.blocks_scratch(conn, R, n_pairs)
-    bn.blocks_into(x, conn, R, pairs, W, R12s, amps, bn.LAW_CG, m, Q_REG, CUTOFF, F, K,
+    bn.blocks_into(x, conn, R, pairs, W, R12s, amps, law_code, m, Q_REG, CUTOFF, F, K,
                    energies, True, ws)
-    bn.blocks_energy(x, conn, R, pairs, W, R12s, amps, bn.LAW_CG, m, Q_REG, CUTOFF, alone, ws)
-    assert np.array_equal(alone, energies)
+    bn.blocks_energy(x, conn, R, pairs, W, R12s, amps, law_code, m, Q_REG, CUTOFF,
+                     energies_only, ws)
+    assert np.array_equal(energies_only, energies)
     for p, (e1, e2) in enumerate(pairs):
-        e, f, k = bn.block_forces(bn.LAW_CG, x[conn[e1]], x[conn[e2]], R[e1], R[e2], W[p],
+        e, f, k = bn.block_forces(law_code, x[conn[e1]], x[conn[e2]], R[e1], R[e2], W[p],
                                   R12s[p], amps[p], m, Q_REG, CUTOFF)
         assert e == energies[p] and np.array_equal(f, F[p]) and np.array_equal(k, K[p])
     assert n_pairs < 7 or ((energies > 0.0).any() and (energies == 0.0).any())

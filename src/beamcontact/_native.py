@@ -169,9 +169,10 @@ def njit_parallel_uncounted(func):
     array beyond the call: compiled without reference counting (Numba's ``_nrt=False``),
     so that the views it takes of its arguments per element (``dR[e]``, ``r_out[e]``, ...)
     cost no atomic increments and decrements of their parents' counts. Its caller holds
-    every array it is given for the whole call, so no view outlives its parent. For the
-    element loop of the HHT residual: the peer drops' step loop 2-4 % shorter (session
-    24); the arithmetic is the same, bit for bit."""
+    every array it is given for the whole call, so no view outlives its parent (and, as
+    for :func:`njit_uncounted`, it calls no kernel that returns a new array). For the
+    element loop of the HHT residual (the peer drops' step loop 2-4 % shorter, session
+    24) and the contact blocks' runs; the arithmetic is the same, bit for bit."""
     numba.get_num_threads()  # starts the pool (once)
     return _compiled(func, parallel=True, _nrt=False)
 
@@ -501,9 +502,11 @@ def njit_uncounted(func):
     call (the linear solver's factorisations, a contact block with its work arrays):
     compiled without reference counting (Numba's ``_nrt=False``), so that its views
     (``band[j]``, ``W[i]``, a row of its work arrays) cost no atomic increments and
-    decrements; its callers hold every array it is given. Numba rejects an allocation
-    in such a kernel when it compiles it (a typing error). The arithmetic is the same,
-    bit for bit."""
+    decrements; its callers hold every array it is given. Numba refuses to compile an
+    allocation in such a kernel or in the helpers inlined into it ("NRT required but not
+    enabled"), but not a call of a counted kernel that returns a new array: that array
+    would never be freed, so such a kernel calls only kernels that return numbers. The
+    arithmetic is the same, bit for bit."""
     return _compiled(func, _nrt=False)
 
 
