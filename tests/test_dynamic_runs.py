@@ -1,6 +1,7 @@
 """Dynamic runs through the CLI: output contract, restart identity, cut-back and recovery."""
 
 import json
+import os
 import subprocess
 import sys
 import tomllib
@@ -46,6 +47,12 @@ def test_dynamic_outputs(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "completed" and summary["steps"] == 100
     assert 0 < summary["compile_time_s"] < summary["wall_time_s"]
+    # the native loop's seconds per thread count: counts the process may use, seconds
+    # that add up to at most the loop's own (with empty caches the driver's host loop
+    # makes the steps while a helper compiles the loop: then none)
+    threads = summary["loop_threads"]
+    assert threads is not None and all(1 <= int(k) <= (os.cpu_count() or 1) for k in threads)
+    assert sum(threads.values()) <= summary["solve_time_s"] + 1e-3
     assert summary["newton_iterations"] == int(h["newton_iters"].sum())
     # VTU every vtk_interval = 0.01 s: t = 0, 0.01, ..., 0.1
     assert (out / "beams.pvd").read_text().count("<DataSet") == 11

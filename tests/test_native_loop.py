@@ -10,6 +10,7 @@ every step accepted before it.
 """
 
 import _thread
+import os
 import signal
 import threading
 from pathlib import Path
@@ -57,6 +58,10 @@ def _solve(raw: dict, host: bool):
     res = solve_dynamic(engine, start.state, raw["analysis"]["t_end"], start.prepared.length,
                         start.control, on_step=rows.append)
     assert res.status == "completed", res.message
+    if not host:  # the compiled loop's seconds per thread count (summary's loop_threads)
+        seconds = start.engine.thread_seconds
+        assert seconds and all(1 <= k <= (os.cpu_count() or 1) for k in seconds)
+        assert 0 < sum(seconds.values()) <= res.wall_time
     return res, rows
 
 

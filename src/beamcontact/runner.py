@@ -495,7 +495,8 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
                    "rejections": _rejections(start.rejected, result.rejections),
                    "t_final": result.t,
                    "solve_time_s": result.wall_time,
-                   "compile_time_s": tally.first_step_s or 0.0}
+                   "compile_time_s": tally.first_step_s or 0.0,
+                   "loop_threads": _loop_threads(begin.engine)}
     except KeyboardInterrupt as exc:
         summary = {**tally.interrupted("t", exc), "rejections": tally.rejections(),
                    "t_final": tally.reached}
@@ -506,6 +507,14 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
     summary["restarted_from_step"] = start.step0 if restart else None
     summary["mean_iterations_per_step"] = summary["newton_iterations"] / max(summary["steps"], 1)
     return {**summary, **_dynamic_results(rec, contact)}, rec
+
+
+def _loop_threads(engine) -> dict[str, float] | None:
+    """Seconds of the native engine's compiled time loop per count of threads its
+    parallel kernels ran on (docs/engines.md, "Threads"); None for the JAX engine."""
+    seconds = getattr(engine, "thread_seconds", None)
+    return None if seconds is None else {str(k): round(v, 4)
+                                         for k, v in sorted(seconds.items())}
 
 
 def _dynamic_results(rec: RunRecord, contact) -> dict:

@@ -582,6 +582,8 @@ class NativeEngine:
         self._energies: list[tuple] = []
         # (when, result) of the last look of loop_compiling
         self._looked: tuple[float, bool] | None = None
+        # seconds of the compiled loop per thread count (_native.CoreShare), for the summary
+        self.thread_seconds: dict[int, float] = {}
         _native.set_threads(None)  # after another run that ended on one thread meanwhile
 
     def _known_energy(self, u: np.ndarray, frozen: tuple) -> float:
@@ -722,6 +724,8 @@ class NativeEngine:
                     emit(StateRows(out[8][:k, T], *(x[:k] for x in out[:6])), out[6][:k],
                          out[7][:k], out[8][:k])
             seconds = time.perf_counter() - t0
+            self.thread_seconds[cores.threads] = (self.thread_seconds.get(cores.threads, 0.0)
+                                                  + seconds)
             if first_s is None:
                 first_s = watch.outside_compiles()  # waiting for the helper, loading
                 _warmup.loop_ready()
