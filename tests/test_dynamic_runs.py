@@ -53,6 +53,7 @@ def test_dynamic_outputs(tmp_path):
     threads = summary["loop_threads"]
     assert threads is not None and all(1 <= int(k) <= (os.cpu_count() or 1) for k in threads)
     assert sum(threads.values()) <= summary["solve_time_s"] + 1e-3
+    assert summary["solver"]["threads"] >= max(map(int, threads), default=1)
     assert summary["newton_iterations"] == int(h["newton_iters"].sum())
     # VTU every vtk_interval = 0.01 s: t = 0, 0.01, ..., 0.1
     assert (out / "beams.pvd").read_text().count("<DataSet") == 11
@@ -61,6 +62,20 @@ def test_dynamic_outputs(tmp_path):
             assert f["states"][name].shape[0] == 101
     for png in ("shapes", "points", "energies"):
         assert (out / "plots" / f"{png}.png").stat().st_size > 0
+
+
+def test_a_loop_that_shared_its_cores_says_so():
+    """The warning of a native loop that ran more than a tenth of its time on fewer
+    threads than its process may use (other processes kept cores busy)."""
+    from beamcontact.summary import shared_cores_warning
+
+    assert shared_cores_warning(None, 2) is None  # the JAX engine
+    assert shared_cores_warning({}, 2) is None  # the host loop made every step
+    assert shared_cores_warning({"2": 1.7, "1": 0.1}, 2) is None  # 6 %
+    assert shared_cores_warning({"1": 5.0}, 1) is None  # one thread is all it may use
+    warning = shared_cores_warning({"1": 5.73, "2": 0.5}, 2)
+    assert warning.startswith("the step loop ran 5.73 of its 6.23 s on fewer threads than "
+                              "the 2 this process may use")
 
 
 def test_restart_equals_uninterrupted_run(tmp_path):

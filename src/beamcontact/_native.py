@@ -182,6 +182,12 @@ def njit_parallel_uncounted(func):
 _most_threads = numba.config.NUMBA_NUM_THREADS
 
 
+def most_threads() -> int:
+    """The most threads the parallel kernels of this process may use
+    (``NUMBA_NUM_THREADS``, or 1 after :func:`single_thread`)."""
+    return _most_threads
+
+
 def single_thread() -> None:
     """Run the parallel kernels of this process on one thread (a sweep's worker: the
     cores are shared out between workers already)."""

@@ -49,6 +49,7 @@ from beamcontact.summary import (
     effective_settings,
     integration_energy_warning,
     set_change_warning,
+    shared_cores_warning,
     unfinished_amplitude_warning,
 )
 
@@ -182,13 +183,15 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
         warnings.append(integration_energy_warning(summary.get("energy"),
                                                    case.solver.error_tol == 0.0))
     warnings.append(unfinished_amplitude_warning(summary.get("first_amplitude") or {}))
+    solver = {**effective_settings(case), **_engine_used(case, model, contact)}
+    warnings.append(shared_cores_warning(summary.get("loop_threads"),
+                                         solver.get("threads", 1)))
     summary["warnings"] = [w for w in warnings if w is not None]
     # every compile of the run (the model, its start, the solve) and the first attempt's
     # time outside them (XLA, waiting for the helper that compiles the loop)
     summary["compile_time_s"] = summary.get("compile_time_s", 0.0) + watch.compiles()
     summary.update({"title": case.title, "kind": case.analysis.kind,
-                    "solver": {**effective_settings(case),
-                               **_engine_used(case, model, contact)},
+                    "solver": solver,
                     "wall_time_s": time.perf_counter() - watch.wall, "n_dof": model.n_dof,
                     "n_elements": sum(b.mesh.n_elements for b in disc.beams),
                     "beamcontact_version": __version__})
@@ -221,7 +224,10 @@ def _engine_used(case: Case, model: Model, contact) -> dict:
     if name == "jax":
         used["linear_solver_used"] = "sparse" if model.sparse else "dense"
     else:
+        from beamcontact import _native
+
         used["linear_solver_used"] = "bordered banded"
+        used["threads"] = _native.most_threads()
     return used
 
 

@@ -102,6 +102,25 @@ def unfinished_amplitude_warning(first_amplitude: dict) -> str | None:
             f"analysis.t_end gives the amplitude)")
 
 
+def shared_cores_warning(loop_threads: dict | None, most: int,
+                         share: float = 0.1) -> str | None:
+    """A warning when the native engine's compiled time loop ran more than ``share`` of
+    its time on fewer threads than the ``most`` its process may use (``loop_threads``:
+    seconds per thread count, summary.json): other processes kept cores busy, so the run
+    took longer than on an idle machine; its numbers are the same (docs/engines.md,
+    "Threads"). None otherwise, and for the JAX engine (``loop_threads`` None)."""
+    if not loop_threads:
+        return None
+    total = sum(loop_threads.values())
+    fewer = sum(seconds for count, seconds in loop_threads.items() if int(count) < most)
+    if total <= 0.0 or fewer <= share * total:
+        return None
+    return (f"the step loop ran {fewer:.2f} of its {total:.2f} s on fewer threads than the "
+            f"{most} this process may use: other processes kept cores busy, so it took "
+            f"longer than on an idle machine (the results do not depend on it; "
+            f"summary.json loop_threads)")
+
+
 def _energy_scale(energy: dict) -> float:
     """The scale the energy warnings compare with: the larger of the initial total and the
     largest kinetic energy of the run."""
