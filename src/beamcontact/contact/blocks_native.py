@@ -279,17 +279,17 @@ class BlockScratch(NamedTuple):
 
 
 @njit
-def block_scratch(rows, n1, n2, ns1, ns2):
-    """:class:`BlockScratch` of ``rows`` rows for blocks of elements with n1 and n2
-    control points and ns1 and ns2 contact points."""
+def block_scratch(runs, n1, n2, ns1, ns2):
+    """:class:`BlockScratch` of ``runs`` rows (one per run of blocks) for blocks of
+    elements with n1 and n2 control points and ns1 and ns2 contact points."""
     cap = ns1 * ns2
     return BlockScratch(
-        np.empty((rows, n1, 2)), np.empty((rows, n2, 2)), np.empty((rows, ns1, 2)),
-        np.empty((rows, ns2, 2)), np.empty((rows, (ns2 + CHUNK - 1) // CHUNK, 4)),
-        np.empty((rows, ns1 + 1), dtype=np.int64), np.empty((rows, cap), dtype=np.int64),
-        np.empty((rows, cap, 2)), np.empty((rows, 7, cap)), np.empty((rows, ns2, 5)),
-        np.empty((rows, ns2), dtype=np.bool_), np.empty((rows, ns2), dtype=np.int64),
-        np.empty((rows, ns2, 3)))
+        np.empty((runs, n1, 2)), np.empty((runs, n2, 2)), np.empty((runs, ns1, 2)),
+        np.empty((runs, ns2, 2)), np.empty((runs, (ns2 + CHUNK - 1) // CHUNK, 4)),
+        np.empty((runs, ns1 + 1), dtype=np.int64), np.empty((runs, cap), dtype=np.int64),
+        np.empty((runs, cap, 2)), np.empty((runs, 7, cap)), np.empty((runs, ns2, 5)),
+        np.empty((runs, ns2), dtype=np.bool_), np.empty((runs, ns2), dtype=np.int64),
+        np.empty((runs, ns2, 3)))
 
 
 @njit
@@ -402,7 +402,7 @@ def _add_second_element(f, k, o, R2, sums2, active2, tangent):
 
 
 @njit_inline
-def _pair_points(x, conn, pairs, p, X1, X2):
+def _block_points(x, conn, pairs, p, X1, X2):
     """X1, X2 = the control points (n_loc, 2) of the elements of block p, rows conn[e] of
     x; returns the two elements."""
     e1, e2 = pairs[p, 0], pairs[p, 1]
@@ -449,7 +449,7 @@ def blocks_into(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, F,
     for t in prange(runs):
         X1, X2 = ws.X1[t], ws.X2[t]
         for p in range(*_run(t, runs, pairs.shape[0])):
-            e1, e2 = _pair_points(x, conn, pairs, p, X1, X2)
+            e1, e2 = _block_points(x, conn, pairs, p, X1, X2)
             energies[p] = _block_into(
                 law, X1, X2, R[e1], R[e2], W[p], R12[p], amplitudes[p], m, q_reg, cutoff, F[p],
                 K[p], tangent, ws.p1[t], ws.p2[t], ws.boxes2[t], ws.rows[t], ws.js[t],
@@ -464,7 +464,7 @@ def blocks_energy(x, conn, R, pairs, W, R12, amplitudes, law, m, q_reg, cutoff, 
     for t in prange(runs):
         X1, X2 = ws.X1[t], ws.X2[t]
         for p in range(*_run(t, runs, pairs.shape[0])):
-            e1, e2 = _pair_points(x, conn, pairs, p, X1, X2)
+            e1, e2 = _block_points(x, conn, pairs, p, X1, X2)
             energies[p] = _block_energy(law, X1, X2, R[e1], R[e2], W[p], R12[p], amplitudes[p],
                                         m, q_reg, cutoff, ws.p1[t], ws.p2[t], ws.boxes2[t],
                                         ws.rows[t], ws.js[t], ws.r[t], ws.pair[t])
