@@ -222,6 +222,31 @@ def test_a_kernel_compiled_inside_another_is_compiled_whole_for_python(tmp_path)
     assert run("outer", "outer") == "1 0"
 
 
+def test_a_partial_version_never_replaces_a_whole_one_in_the_cache(tmp_path):
+    """Two processes of a cold start race (beamcontact/_warmup.py): one compiles ``terms``
+    whole for Python and stores it; the other, which found the cache without ``terms`` a
+    moment before, compiles it inside ``outer`` and stores its partial version after.
+    The whole version stays (_native._cached_whole), so the next call of ``terms`` from
+    Python loads it instead of compiling it whole again."""
+    (tmp_path / "test_kernels.py").write_text(_KERNELS)
+    cache = str(tmp_path / "cache")
+
+    def run(code: str, count: str) -> str:
+        return _python(
+            f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
+            "import numpy as np; import beamcontact.test_kernels as k; "
+            f"{code}; "
+            f"print(sum(k.{count}.stats.cache_hits.values()), "
+            f"sum(k.{count}.stats.cache_misses.values()))", cache)
+
+    assert run("k.terms(np.arange(5.0))", "terms") == "0 1"  # whole, stored
+    # the late process: its look into the cache came before the whole version was there
+    assert run("k.terms._cache.load_overload = lambda *a: None; k.outer(np.arange(5.0))",
+               "terms") == "0 1"
+    assert not any(p.name.startswith("partial-") for p in (tmp_path / "cache").rglob("*"))
+    assert run("k.terms(np.arange(5.0))", "terms") == "1 0"
+
+
 
 def test_a_kernel_loads_from_the_cache_without_parsing_its_bitcode(tmp_path):
     """A kernel loaded from the disk cache for a call from Python keeps the LLVM bitcode
