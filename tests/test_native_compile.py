@@ -11,6 +11,7 @@ compiled there and then."""
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -248,6 +249,57 @@ def test_a_partial_version_never_replaces_a_whole_one_in_the_cache(tmp_path):
 
 
 
+def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded(tmp_path):
+    """A process that misses a kernel in the cache while another process holds the claim
+    to compile it (beamcontact/_compile_claims.py) waits, and loads the kernel once it is
+    in the cache, instead of compiling it too; a claim whose process has died claims
+    nothing."""
+    import shutil
+    import time
+
+    (tmp_path / "test_kernels.py").write_text(_KERNELS)
+    prelude = (f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
+               "import numba, numpy as np; import beamcontact.test_kernels as k; "
+               "from beamcontact import _native; ")
+    stats = ("print(sum(k.terms.stats.cache_hits.values()), "
+             "sum(k.terms.stats.cache_misses.values()), flush=True)")
+    compiled, waiting = str(tmp_path / "compiled"), str(tmp_path / "waiting")
+    _python(prelude + "k.terms(np.arange(5.0))", compiled)
+    claim = Path(_python(prelude + "print(_native.kernel_file(k.terms, 'compiling', "
+                                   "(numba.typeof(np.arange(5.0)),)))", waiting))
+
+    holder = subprocess.Popen(["sleep", "60"])
+    try:
+        claim.write_text(str(holder.pid))
+        waiter = subprocess.Popen(
+            [sys.executable, "-c", prelude + "print('calling', flush=True); "
+             "k.terms(np.arange(5.0)); " + stats],
+            env={**os.environ, "BEAMCONTACT_CACHE_DIR": waiting}, stdout=subprocess.PIPE,
+            text=True)
+        assert waiter.stdout.readline().strip() == "calling"
+        time.sleep(2.0)  # it has looked into the cache and found the claim
+        assert waiter.poll() is None  # waiting
+        shutil.copytree(compiled, waiting, dirs_exist_ok=True)  # the holder stored it
+        claim.unlink()
+        out, _ = waiter.communicate(timeout=60)
+        assert waiter.returncode == 0
+        assert out.strip() == "1 0"  # loaded, not compiled
+    finally:
+        holder.kill()
+        holder.wait()
+
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    fresh = str(tmp_path / "fresh")
+    claim = Path(_python(prelude + "print(_native.kernel_file(k.terms, 'compiling', "
+                                   "(numba.typeof(np.arange(5.0)),)))", fresh))
+    claim.write_text(str(dead.pid))
+    start = time.monotonic()
+    assert _python(prelude + "k.terms(np.arange(5.0)); " + stats, fresh) == "0 1"
+    assert time.monotonic() - start < 30.0
+    assert not claim.exists()  # released once stored
+
+
 def test_a_kernel_loads_from_the_cache_without_parsing_its_bitcode(tmp_path):
     """A kernel loaded from the disk cache for a call from Python keeps the LLVM bitcode
     stored with it unparsed (_native._load_without_bitcode): the JIT knows the symbols of
@@ -291,8 +343,12 @@ def test_the_symbols_of_an_object_file_are_those_its_bitcode_exports():
 
     from beamcontact import _native
 
+    import numba
+
     x = np.arange(6.0)
-    kernel = _native.njit(lambda a: np.sort(a)[::-1].copy())
+    # compiled here, never loaded from the disk cache (a loaded library has no object
+    # code to serialise again: the test failed on every run after the first)
+    kernel = numba.njit(lambda a: np.sort(a)[::-1].copy(), cache=False, **_native._OPTIONS)
     kernel(x)
     library = kernel.overloads[kernel.signatures[0]].library
     _, kind, (object_code, bitcode) = library.serialize_using_object_code()

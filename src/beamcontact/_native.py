@@ -29,6 +29,7 @@ import numba
 import numba.core.event
 import numba.extending
 
+from beamcontact import _compile_claims
 from beamcontact._cache import cache_dir
 
 _OPTIONS = {"fastmath": False, "error_model": "numpy", "nogil": True}
@@ -454,17 +455,17 @@ def _cached_whole(dispatcher):
     ``contact_energy`` whole for Python while the helper, which had looked in the cache
     a moment before, compiled it inside the attempt and stored its partial version after
     the run's, so the next run compiled it whole again (1.05 s of its 7.5 s; session
-    27)."""
+    27). And a kernel missing from the cache is compiled by one process at a time
+    (beamcontact/_compile_claims.py): another process that misses it meanwhile waits
+    and loads it."""
     cache = getattr(dispatcher, "_cache", None)
     save = getattr(cache, "save_overload", None)
     load = getattr(cache, "load_overload", None)
     if save is None or load is None:
         return dispatcher
-    name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
 
     def partial_file(signature) -> Path:
-        key = hashlib.sha256(f"{name}{signature}".encode()).hexdigest()[:24]
-        return _CACHE_DIR / f"partial-{key}"
+        return kernel_file(dispatcher, "partial", signature)
 
     def holds_whole(signature, result) -> bool:
         try:
@@ -475,25 +476,74 @@ def _cached_whole(dispatcher):
         return held and not partial_file(signature).exists()
 
     def save_marked(signature, result):
-        library = getattr(result, "library", None)
-        partial = getattr(library, "module_passes_skipped", False)
-        if partial and holds_whole(signature, result):
-            return
-        save(signature, result)
-        with contextlib.suppress(OSError):
-            if partial:
-                partial_file(signature).touch()
-            else:
-                partial_file(signature).unlink(missing_ok=True)
+        try:
+            library = getattr(result, "library", None)
+            partial = getattr(library, "module_passes_skipped", False)
+            if partial and holds_whole(signature, result):
+                return
+            save(signature, result)
+            with contextlib.suppress(OSError):
+                if partial:
+                    partial_file(signature).touch()
+                else:
+                    partial_file(signature).unlink(missing_ok=True)
+        finally:
+            _compile_claims.release(kernel_file(dispatcher, "compiling", signature))
+            _CLAIMED.pop(id(dispatcher), None)
 
     def load_whole_for_python(signature, target_context):
         if not _COMPILING and not _partial_for_python and partial_file(signature).exists():
             return None  # a call from Python: compile it whole
         return load(signature, target_context)
 
+    def load_or_claim(signature, target_context):
+        found = load_whole_for_python(signature, target_context)
+        claim = kernel_file(dispatcher, "compiling", signature)
+        if found is not None:
+            return found
+        if _compile_claims.take(claim):
+            _CLAIMED[id(dispatcher)] = claim
+            return None
+        _compile_claims.wait(claim)  # another process compiles it
+        found = load_whole_for_python(signature, target_context)
+        if found is None and _compile_claims.take(claim):
+            _CLAIMED[id(dispatcher)] = claim
+        return found
+
     cache.save_overload = save_marked
-    cache.load_overload = load_whole_for_python
+    cache.load_overload = load_or_claim
     return dispatcher
+
+
+# the claim each dispatcher's compile in progress holds (_compile_claims), by id
+_CLAIMED: dict[int, Path] = {}
+
+
+class _FailedCompiles(numba.core.event.Listener):
+    """Releases the claim of a compile that failed (it stores nothing), so that another
+    process waits no longer; a stored kernel releases its claim in ``save_marked``."""
+
+    def on_start(self, ev):
+        pass
+
+    def on_end(self, ev):
+        if ev.is_failed:
+            claim = _CLAIMED.pop(id(ev.data.get("dispatcher")), None)
+            if claim is not None:
+                _compile_claims.release(claim)
+
+
+numba.core.event.register("numba:compile", _FailedCompiles())
+
+
+def kernel_file(dispatcher, prefix: str, signature) -> Path:
+    """``<prefix>-<key>`` in the kernel cache folder, the key naming the kernel of
+    ``dispatcher`` compiled for ``signature`` (the argument types, as Numba's cache gets
+    them): ``partial-`` marks a partial version (:func:`_cached_whole`), ``compiling-``
+    a process's claim to compile it (beamcontact/_compile_claims.py)."""
+    name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
+    key = hashlib.sha256(f"{name}{signature}".encode()).hexdigest()[:24]
+    return _CACHE_DIR / f"{prefix}-{key}"
 
 
 def _compiled(func, **options):

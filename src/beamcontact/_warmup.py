@@ -35,7 +35,7 @@ import sys
 import time
 from pathlib import Path
 
-from beamcontact import _native
+from beamcontact import _compile_claims, _native
 
 # a helper that takes longer than this (or a lock older than it) is given up: the run
 # compiles the loop itself
@@ -91,19 +91,7 @@ def _helper_works(lock: Path) -> bool:
     without its cleanup: its lock must not make the next run wait.)"""
     if _helper is not None:
         return _helper.poll() is None
-    try:
-        pid = int(lock.read_text())
-    except FileNotFoundError:
-        return False
-    except (OSError, ValueError):
-        return True  # its starter is writing the process id
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True  # alive, another user's
-    return True
+    return _compile_claims.named_process_alive(lock)
 
 
 def steps_meanwhile() -> bool:
