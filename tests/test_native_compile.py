@@ -339,11 +339,10 @@ def test_the_symbols_of_an_object_file_are_those_its_bitcode_exports():
     symbols, the very names its LLVM module defines without internal or private
     linkage (what Numba's own load lists from the bitcode, less the names no JIT lookup
     can resolve)."""
+    import numba
     from llvmlite import binding
 
     from beamcontact import _native
-
-    import numba
 
     x = np.arange(6.0)
     # compiled here, never loaded from the disk cache (a loaded library has no object

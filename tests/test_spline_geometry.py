@@ -77,12 +77,18 @@ def test_evaluate_sums_only_the_nonzero_basis_functions():
 
 
 def test_sparse_basis_is_the_dense_basis():
+    """The rows of p+1 basis functions equal the dense basis, and their product with
+    control points is SciPy's CSR product bit for bit (the same order of the sums)."""
+    import scipy.sparse as sp
+
     c = refine_knots(elevate_degree(arc([0.0, 0.0], 1.5, 0.2, 2.2), 2),
                      np.linspace(0, 1, 13)[1:-1])
     u = np.linspace(0.0, 1.0, 97)
     B = c.sparse_basis(u)
     assert B.nnz == len(u) * (c.degree + 1)
     np.testing.assert_array_equal(B.toarray(), c.basis_matrix(u)[0])
+    x = np.random.default_rng(0).normal(size=(c.n_points, 2)) * 1e3
+    np.testing.assert_array_equal(B @ x, sp.csr_matrix(B.toarray()) @ x)
 
 
 @pytest.mark.parametrize("degree", [2, 3, 4, 5])

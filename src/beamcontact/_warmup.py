@@ -111,6 +111,13 @@ def steps_meanwhile() -> bool:
     return not ready.exists() and steps.exists() and _helper_works(lock)
 
 
+def loop_cached() -> bool:
+    """Whether the kernel cache holds the compiled loop (its ready mark): a native run
+    then normally compiles nothing."""
+    paths = _paths()
+    return paths is not None and paths[0].exists()
+
+
 def loop_ready() -> None:
     """Mark the loop as compiled into the cache (after its first call in any process)."""
     paths = _paths()

@@ -20,7 +20,7 @@ again: the same sum at the same state, so the result is the same either way.
 import numpy as np
 
 from beamcontact._native import njit
-from beamcontact.arrays_native import copy_1d, copy_2d
+from beamcontact.arrays_native import copy_1d, copy_2d, equal
 from beamcontact.assembly import native_model as nmod
 from beamcontact.contact import step_set_native as ssn
 from beamcontact.dynamics.control import (
@@ -62,7 +62,7 @@ def _same_set(pairs, W, known_pairs, known_W, weights_of_pairs):
     for p in range(pairs.shape[0]):
         if pairs[p, 0] != known_pairs[p, 0] or pairs[p, 1] != known_pairs[p, 1]:
             return False
-    return weights_of_pairs or np.array_equal(W, known_W)
+    return weights_of_pairs or equal(W, known_W)
 
 
 @njit

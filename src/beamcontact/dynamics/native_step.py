@@ -29,6 +29,7 @@ import numpy as np
 
 from beamcontact import _native
 from beamcontact._native import CoreShare, Stopwatch, njit, njit_uncounted
+from beamcontact.arrays_native import EPS
 from beamcontact.assembly import native_model as nmod
 from beamcontact.assembly.model import LoadState
 from beamcontact.contact import blocks_native
@@ -207,7 +208,7 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
         u[i] = u_n[i] + h * v_n[i] + 0.5 * h * h * a_n[i]
         x_max = max(x_max, abs(nm.x_ref[i // 2, i % 2] + u_n[i]))
     # the increment tolerance of fused_attempt: utol (h / dt_ref)^2, not below round-off
-    utol_h = max(utol * min((h / dt_ref) ** 2, 1.0), 8.0 * np.finfo(np.float64).eps * x_max)
+    utol_h = max(utol * min((h / dt_ref) ** 2, 1.0), 8.0 * EPS * x_max)
     f_norm = 0.0
     for i in range(n):
         f_norm += (f_pot_n[i] * nm.free[i]) ** 2

@@ -198,8 +198,8 @@ def point_sampler(disc: Discretization, name: str, fraction: float) -> tuple[np.
 
 
 def polyline_matrix(info: DiscreteBeam, samples_per_element: int):
-    """Sparse matrix (scipy CSR) mapping the beam's control points to polyline vertices
-    along its axis."""
+    """The matrix (:class:`~beamcontact.spline.curve.BasisRows`) mapping the beam's
+    control points to polyline vertices along its axis."""
     breaks = info.mesh.breaks
     u = np.unique(np.concatenate([np.linspace(a, b, samples_per_element + 1)
                                   for a, b in zip(breaks[:-1], breaks[1:], strict=True)]))

@@ -13,6 +13,7 @@ hundreds of small array operations per call, and 20 beams of 10 000 elements too
 import numpy as np
 
 from beamcontact._native import njit, njit_parallel, prange
+from beamcontact.arrays_native import count_not_above
 
 
 @njit
@@ -25,7 +26,7 @@ def span_of(knots, degree, u):
         return n
     if u <= knots[degree]:
         return degree
-    return np.searchsorted(knots, u, side="right") - 1
+    return count_not_above(knots, u) - 1
 
 
 @njit

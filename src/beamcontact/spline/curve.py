@@ -10,6 +10,42 @@ from beamcontact.spline.basis_native import curve_points_into
 
 
 @dataclass(frozen=True, eq=False)
+class BasisRows:
+    """A (rows, n) matrix whose row i holds ``values[i]`` in the columns ``first[i]``,
+    ``first[i] + 1``, ... (the basis functions of a curve that are nonzero at a
+    parameter). ``rows @ x`` sums each row's terms in column order from zero, the order
+    of SciPy's CSR product that it replaces, whose import took 0.06 s of each run's
+    start (session 27)."""
+
+    first: np.ndarray
+    values: np.ndarray
+    n: int
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.first.shape[0], self.n)
+
+    @property
+    def nnz(self) -> int:
+        return self.values.size
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x)
+        out = np.zeros((self.first.shape[0], *x.shape[1:]), np.result_type(self.values, x))
+        spread = (slice(None),) + (None,) * (x.ndim - 1)
+        for j in range(self.values.shape[1]):
+            out += self.values[:, j][spread] * x[self.first + j]
+        return out
+
+    def toarray(self) -> np.ndarray:
+        """The dense matrix."""
+        dense = np.zeros(self.shape)
+        rows = np.arange(self.first.shape[0])[:, None]
+        dense[rows, self.first[:, None] + np.arange(self.values.shape[1])] = self.values
+        return dense
+
+
+@dataclass(frozen=True, eq=False)
 class NurbsCurve:
     """A planar NURBS curve on the parameter domain [0, 1].
 
@@ -60,17 +96,13 @@ class NurbsCurve:
         out[:, rows, first[:, None] + np.arange(self.degree + 1)] = ders.transpose(1, 0, 2)
         return out[: nders + 1]
 
-    def sparse_basis(self, u: np.ndarray):
-        """The rational basis at parameters u as a sparse (len(u), n) matrix, p+1 entries
-        per row: points = sparse_basis(u) @ control points, in memory linear in both."""
-        import scipy.sparse as sp
-
+    def sparse_basis(self, u: np.ndarray) -> "BasisRows":
+        """The rational basis at parameters u as a (len(u), n) matrix of p+1 consecutive
+        entries per row: points = sparse_basis(u) @ control points, in memory linear in
+        both."""
         u = np.atleast_1d(np.asarray(u, float))
         first, ders = nurbs_basis_derivatives(self.knots, self.degree, self.weights, u)
-        m = self.degree + 1
-        cols = first[:, None] + np.arange(m)
-        return sp.csr_matrix((ders[:, 0].ravel(), cols.ravel(), np.arange(0, len(u) * m + 1, m)),
-                             shape=(len(u), self.n_points))
+        return BasisRows(first, np.ascontiguousarray(ders[:, 0]), self.n_points)
 
     def evaluate(self, u: np.ndarray, nders: int = 0) -> np.ndarray:
         """Points and parametric derivatives: shape (nders+1, len(u), 2), nders <= 2.
