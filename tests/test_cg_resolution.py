@@ -248,3 +248,12 @@ def test_log_kve_is_scipys(nu):
     np.testing.assert_allclose(log_kve(nu, z[finite]), np.log(scipys[finite]), rtol=1e-13,
                                atol=1e-12)
     assert np.all(np.isfinite(log_kve(nu, z)))
+    # far beyond, the asymptotic series (DLMF 10.40.2) K_nu(z) e^z = sqrt(pi / (2 z))
+    # (1 + a1 / z + a2 / z^2 + ...), a_k = prod_j (4 nu^2 - (2 j - 1)^2) / (k! 8^k)
+    far = np.array([1e8, 1e12, 1e18])
+    mu = 4.0 * nu**2
+    series = 1.0 + (mu - 1.0) / (8.0 * far) + (mu - 1.0) * (mu - 9.0) / (2.0 * (8.0 * far)**2) \
+        + (mu - 1.0) * (mu - 9.0) * (mu - 25.0) / (6.0 * (8.0 * far)**3)
+    np.testing.assert_allclose(log_kve(nu, far),
+                               0.5 * np.log(np.pi / (2.0 * far)) + np.log(series), rtol=0,
+                               atol=1e-12)

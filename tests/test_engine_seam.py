@@ -11,6 +11,7 @@ import ast
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -112,12 +113,20 @@ def test_blas_runs_on_one_thread_in_a_fresh_process(engine):
     does not reach it. A native run whose kernels compile loads that library too
     (Numba's compiler imports scipy.linalg.cython_blas), though its kernels call no
     BLAS; one whose loop is cached (the second here) loads no kernel that imports it."""
+    from beamcontact import _warmup
+
     repo = Path(__file__).resolve().parents[1]
-    for _ in range(2):
+    for run in range(2):
         out = subprocess.run([sys.executable, "-c", _BLAS_THREADS, engine],
                              capture_output=True, text=True, check=True, cwd=repo)
         threads, linalg = out.stdout.strip().rsplit(" ", 1)
         assert threads == "[1]", out.stdout + out.stderr
+        paths = _warmup._paths()
+        if run == 0 and paths is not None:  # a helper of a cold first run may outlive it
+            deadline = time.monotonic() + 600.0
+            while (not paths[0].exists() and _warmup._helper_works(paths[1])
+                   and time.monotonic() < deadline):
+                time.sleep(0.2)
     if engine == "native" and os.environ.get("BEAMCONTACT_CACHE_DIR") != "":
         assert linalg == "False"
 

@@ -24,18 +24,26 @@ import os
 import time
 from pathlib import Path
 
-# the longest a process waits for another's compile of one kernel (the time loop, the
-# longest, takes about 10 s with empty caches on one core)
+# the longest a process waits for another's claim: a claim is held while the kernel's
+# callees compile inside it too, which for the time loop of a cold start on a busy core
+# can take a minute (session 22: 85 s of compiles on one core); past it the waiting
+# process compiles the kernel itself (the same kernel twice, as without claims)
 CLAIM_WAIT_S = 120.0
 POLL_S = 0.02
+# a claim file that names no process this long after it was written was left by a
+# process that failed to write it
+UNWRITTEN_S = 5.0
+# what a claim says besides its process id: the kernel is compiled inside another
+# compile (a partial version, beamcontact/_native.py)
+PARTIAL = "partial"
 
 _held: set[Path] = set()
 
 
-def take(claim: Path) -> bool:
-    """Claim ``claim`` for this process: True if this process may compile (the claim is
-    its own now or already, or claims cannot be written), False if a live process holds
-    it."""
+def take(claim: Path, partial: bool = False) -> bool:
+    """Claim ``claim`` for this process (``partial``: for a compile inside another): True
+    if this process may compile (the claim is its own now or already, or claims cannot
+    be written), False if a live process holds it."""
     if claim in _held:
         return True
     for _ in range(2):
@@ -49,13 +57,24 @@ def take(claim: Path) -> bool:
             continue
         except OSError:
             return True
+        _held.add(claim)
         try:
-            os.write(fd, str(os.getpid()).encode())
+            os.write(fd, f"{os.getpid()} {PARTIAL if partial else ''}".strip().encode())
+        except OSError:
+            release(claim)
         finally:
             os.close(fd)
-        _held.add(claim)
         return True
     return True
+
+
+def held_for_partial(claim: Path) -> bool:
+    """Whether ``claim`` is held for a compile inside another compile (its partial
+    version is of no use to a call from Python, which compiles the kernel whole)."""
+    try:
+        return claim.read_text().split()[1:] == [PARTIAL]
+    except OSError:
+        return False
 
 
 def release(claim: Path) -> None:
@@ -77,30 +96,38 @@ def wait(claim: Path, within: float = CLAIM_WAIT_S) -> None:
 def _holder_alive(claim: Path) -> bool:
     """Whether the process named in ``claim`` lives (False once the claim is gone)."""
     try:
-        if int(claim.read_text()) == os.getpid():
+        if int(claim.read_text().split()[0]) == os.getpid():
             return claim in _held
-    except (OSError, ValueError):
+    except (OSError, ValueError, IndexError):
         pass
     return named_process_alive(claim)
 
 
 def named_process_alive(path: Path) -> bool:
-    """Whether the process whose id the file ``path`` holds lives: False when the file is
-    gone or names a process that has ended, True while its writer is still writing the
-    id or when the process is another user's."""
+    """Whether the process whose id starts the file ``path`` lives: False when the file
+    is gone, names a process that has ended (or only waits to be collected by its
+    parent), or names none UNWRITTEN_S after it was written; True while its writer may
+    still be writing the id, or when the process is another user's."""
     try:
-        pid = int(path.read_text())
+        pid = int(path.read_text().split()[0])
     except FileNotFoundError:
         return False
-    except (OSError, ValueError):
-        return True
+    except (OSError, ValueError, IndexError):
+        try:
+            return time.time() - path.stat().st_mtime < UNWRITTEN_S
+        except OSError:
+            return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except OSError:
         return True
-    return True
+    try:  # a process that has ended but not been collected still answers kill(pid, 0)
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
 
 
 @atexit.register
@@ -108,3 +135,12 @@ def _release_all() -> None:
     """A compile that failed never stored its kernel: its claims go with the process."""
     for claim in list(_held):
         release(claim)
+
+
+def _forget_in_child() -> None:
+    """A forked copy holds none of its parent's claims (the parent releases them)."""
+    _held.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_in_child)

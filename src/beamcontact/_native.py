@@ -512,8 +512,11 @@ def _cached_whole(dispatcher):
                 else:
                     partial_file(signature).unlink(missing_ok=True)
         finally:
-            _compile_claims.release(kernel_file(dispatcher, "compiling", signature))
-            _CLAIMED.pop(id(dispatcher), None)
+            claim = kernel_file(dispatcher, "compiling", signature)
+            _compile_claims.release(claim)
+            claims = _CLAIMED.get(id(dispatcher), [])
+            if claim in claims:
+                claims.remove(claim)
 
     load_unrefreshed = _load_without_refresh(cache)
 
@@ -524,25 +527,34 @@ def _cached_whole(dispatcher):
 
     def load_or_claim(signature, target_context):
         found = load_whole_for_python(signature, target_context)
-        claim = kernel_file(dispatcher, "compiling", signature)
         if found is not None:
             return found
-        if _compile_claims.take(claim):
-            _CLAIMED[id(dispatcher)] = claim
-            return None
-        _compile_claims.wait(claim)  # another process compiles it
+        claim = kernel_file(dispatcher, "compiling", signature)
+        inside = bool(_COMPILING)  # this compile will be a partial version
+        if not _compile_claims.take(claim, partial=inside):
+            if not inside and not _partial_for_python \
+                    and _compile_claims.held_for_partial(claim):
+                return None  # another's partial version would not do: compile it whole
+            _compile_claims.wait(claim)  # another process compiles it
+            found = load_whole_for_python(signature, target_context)
+            if found is not None or not _compile_claims.take(claim, partial=inside):
+                return found
+        # stored by another process between the look above and the claim?
         found = load_whole_for_python(signature, target_context)
-        if found is None and _compile_claims.take(claim):
-            _CLAIMED[id(dispatcher)] = claim
-        return found
+        if found is not None:
+            _compile_claims.release(claim)
+            return found
+        _CLAIMED.setdefault(id(dispatcher), []).append(claim)
+        return None
 
     cache.save_overload = save_marked
     cache.load_overload = load_or_claim
     return dispatcher
 
 
-# the claim each dispatcher's compile in progress holds (_compile_claims), by id
-_CLAIMED: dict[int, Path] = {}
+# the claims of each dispatcher's compiles in progress (_compile_claims), by its id,
+# innermost last
+_CLAIMED: dict[int, list[Path]] = {}
 
 
 class _FailedCompiles(numba.core.event.Listener):
@@ -553,10 +565,9 @@ class _FailedCompiles(numba.core.event.Listener):
         pass
 
     def on_end(self, ev):
-        if ev.is_failed:
-            claim = _CLAIMED.pop(id(ev.data.get("dispatcher")), None)
-            if claim is not None:
-                _compile_claims.release(claim)
+        claims = _CLAIMED.get(id(ev.data.get("dispatcher")))
+        if ev.is_failed and claims:
+            _compile_claims.release(claims.pop())
 
 
 numba.core.event.register("numba:compile", _FailedCompiles())
@@ -567,7 +578,9 @@ def kernel_file(dispatcher, prefix: str, signature) -> Path:
     ``dispatcher`` compiled for ``signature`` (the argument types, as Numba's cache gets
     them): ``partial-`` marks a partial version (:func:`_cached_whole`), ``compiling-``
     a process's claim to compile it (beamcontact/_compile_claims.py)."""
-    name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
+    func = dispatcher.py_func
+    # the source file too: two installs sharing the cache folder have caches of their own
+    name = f"{func.__code__.co_filename}:{func.__module__}.{func.__qualname__}"
     key = hashlib.sha256(f"{name}{signature}".encode()).hexdigest()[:24]
     return _CACHE_DIR / f"{prefix}-{key}"
 

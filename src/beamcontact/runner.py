@@ -140,8 +140,8 @@ def execute(case: Case, case_text: str, out_dir: Path | None,
     # scipy.linalg loads the OpenBLAS that JAX's LAPACK calls, so that the limit below
     # reaches it (a library loaded later keeps its threads). The native engine calls no
     # BLAS (its kernels have their own LU; numpy's BLAS, loaded with numpy, is limited)
-    # but loads scipy.linalg when Numba compiles; a run whose loop is cached compiles
-    # nothing and never loads it: 0.12 s of a warm run
+    # but loads scipy.linalg when Numba compiles; a run whose loop is cached normally
+    # compiles nothing and never loads it: 0.12 s of a warm run
     if choose_engine(case)[0] != "native" or not _warmup.loop_cached():
         import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
