@@ -300,6 +300,26 @@ def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded(tmp_path):
     assert not claim.exists()  # released once stored
 
 
+def test_a_failed_compile_releases_its_claim(tmp_path):
+    """A kernel whose compile fails stores nothing, so its claim
+    (beamcontact/_compile_claims.py) is released at once (``_native._FailedCompiles``),
+    not only when the process ends: another process would wait for it otherwise."""
+    (tmp_path / "test_kernels.py").write_text(_KERNELS + '''
+@ours
+def broken(x):
+    return x + "not a number"
+''')
+    out = _python(
+        f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
+        "import numpy as np; import beamcontact.test_kernels as k; "
+        "from beamcontact import _native\n"
+        "try:\n    k.broken(np.arange(3.0))\nexcept Exception as exc:\n"
+        "    print(type(exc).__name__)\n"
+        "print(sorted(p.name.split('-')[0] for p in _native._CACHE_DIR.iterdir() "
+        "if p.name.startswith('compiling-')))", str(tmp_path / "cache"))
+    assert out.splitlines() == ["TypingError", "[]"]
+
+
 def test_a_kernel_loads_from_the_cache_without_parsing_its_bitcode(tmp_path):
     """A kernel loaded from the disk cache for a call from Python keeps the LLVM bitcode
     stored with it unparsed (_native._load_without_bitcode): the JIT knows the symbols of

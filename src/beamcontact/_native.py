@@ -566,7 +566,10 @@ class _FailedCompiles(numba.core.event.Listener):
 
     def on_end(self, ev):
         claims = _CLAIMED.get(id(ev.data.get("dispatcher")))
-        if ev.is_failed and claims:
+        # the exception the compile ended with (Numba 0.68's Event.is_failed tests the
+        # opposite, and its compile events always carry a 3-tuple)
+        details = getattr(ev, "_exc_details", None)
+        if claims and details is not None and details[0] is not None:
             _compile_claims.release(claims.pop())
 
 
