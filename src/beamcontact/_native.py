@@ -405,8 +405,9 @@ def _load_without_refresh(cache):
     runtime's functions (``rtsys.initialize``) and the symbols that importing
     ``numba.cpython.hashing`` defines; the refresh imports and registers the typing and
     lowering of all of Numba (and scipy.linalg with it), which only a compile needs, and
-    a compile refreshes the context itself. 0.26 s of each warm run (session 27), a
-    tenth of the stiff drop. Without the Numba internals this relies on, Numba's load."""
+    a compile refreshes the context itself. The refresh took 0.26 s in a fresh process,
+    imports included that a run also makes elsewhere (session 27). Without the Numba
+    internals this relies on, Numba's load."""
     try:
         from numba.core.runtime import rtsys
         load = cache._load_overload
