@@ -70,6 +70,22 @@ def other(x):
 '''
 
 
+
+def _kernels_module(tmp_path, extra: str = "") -> str:
+    """Write the test kernels (and ``extra``) as a module of the package into tmp_path
+    (Numba's cache finds a kernel's module again by name); returns the Python lines that
+    import it as ``k``, with numba, numpy as np and beamcontact._native."""
+    (tmp_path / "test_kernels.py").write_text(_KERNELS + extra)
+    return (f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r})\n"
+            "import numba, numpy as np\nimport beamcontact.test_kernels as k\n"
+            "from beamcontact import _native\n")
+
+
+def _counts(kernel: str) -> str:
+    """Python that prints the disk-cache hits and misses of the test kernel ``kernel``."""
+    return (f"print(sum(k.{kernel}.stats.cache_hits.values()), "
+            f"sum(k.{kernel}.stats.cache_misses.values()), flush=True)")
+
 def test_a_constant_argument_compiles_the_kernel_once():
     """``scaled`` called with the constants False and True and with a variable: one
     compiled version (bool), not one per constant (_native._typed_without_constants)."""
@@ -201,18 +217,11 @@ def test_a_kernel_compiled_inside_another_is_compiled_whole_for_python(tmp_path)
     cache marked partial (_native._cached_whole): the next compile that calls ``terms``
     (``other``) links it from there, but the next call of ``terms`` from Python compiles
     it whole (a cache miss) and caches that, which later calls load."""
-    # a module of the package, as Numba's cache finds a kernel's module again by name
-    (tmp_path / "test_kernels.py").write_text(_KERNELS)
-    cache = str(tmp_path / "cache")
+    prelude, cache = _kernels_module(tmp_path), str(tmp_path / "cache")
 
     def run(call: str, count: str) -> str:
         """Call kernel ``call`` in a new process; the cache hits and misses of ``count``."""
-        return _python(
-            f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
-            "import numpy as np; import beamcontact.test_kernels as k; "
-            f"k.{call}(np.arange(5.0)); "
-            f"print(sum(k.{count}.stats.cache_hits.values()), "
-            f"sum(k.{count}.stats.cache_misses.values()))", cache)
+        return _python(prelude + f"k.{call}(np.arange(5.0))\n" + _counts(count), cache)
 
     assert run("outer", "outer") == "0 1"
     assert any(p.name.startswith("partial-") for p in (tmp_path / "cache").rglob("*"))
@@ -229,16 +238,10 @@ def test_a_partial_version_never_replaces_a_whole_one_in_the_cache(tmp_path):
     moment before, compiles it inside ``outer`` and stores its partial version after.
     The whole version stays (_native._cached_whole), so the next call of ``terms`` from
     Python loads it instead of compiling it whole again."""
-    (tmp_path / "test_kernels.py").write_text(_KERNELS)
-    cache = str(tmp_path / "cache")
+    prelude, cache = _kernels_module(tmp_path), str(tmp_path / "cache")
 
     def run(code: str, count: str) -> str:
-        return _python(
-            f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
-            "import numpy as np; import beamcontact.test_kernels as k; "
-            f"{code}; "
-            f"print(sum(k.{count}.stats.cache_hits.values()), "
-            f"sum(k.{count}.stats.cache_misses.values()))", cache)
+        return _python(prelude + code + "\n" + _counts(count), cache)
 
     assert run("k.terms(np.arange(5.0))", "terms") == "0 1"  # whole, stored
     # the late process: its look into the cache came before the whole version was there
@@ -257,12 +260,7 @@ def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded(tmp_path):
     import shutil
     import time
 
-    (tmp_path / "test_kernels.py").write_text(_KERNELS)
-    prelude = (f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
-               "import numba, numpy as np; import beamcontact.test_kernels as k; "
-               "from beamcontact import _native; ")
-    stats = ("print(sum(k.terms.stats.cache_hits.values()), "
-             "sum(k.terms.stats.cache_misses.values()), flush=True)")
+    prelude, stats = _kernels_module(tmp_path), _counts("terms")
     compiled, waiting = str(tmp_path / "compiled"), str(tmp_path / "waiting")
     _python(prelude + "k.terms(np.arange(5.0))", compiled)
     claim = Path(_python(prelude + "print(_native.kernel_file(k.terms, 'compiling', "
@@ -272,8 +270,8 @@ def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded(tmp_path):
     try:
         claim.write_text(str(holder.pid))
         waiter = subprocess.Popen(
-            [sys.executable, "-c", prelude + "print('calling', flush=True); "
-             "k.terms(np.arange(5.0)); " + stats],
+            [sys.executable, "-c", prelude + "print('calling', flush=True)\n"
+             "k.terms(np.arange(5.0))\n" + stats],
             env={**os.environ, "BEAMCONTACT_CACHE_DIR": waiting}, stdout=subprocess.PIPE,
             text=True)
         assert waiter.stdout.readline().strip() == "calling"
@@ -295,7 +293,7 @@ def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded(tmp_path):
                                    "(numba.typeof(np.arange(5.0)),)))", fresh))
     claim.write_text(str(dead.pid))
     start = time.monotonic()
-    assert _python(prelude + "k.terms(np.arange(5.0)); " + stats, fresh) == "0 1"
+    assert _python(prelude + "k.terms(np.arange(5.0))\n" + stats, fresh) == "0 1"
     assert time.monotonic() - start < 30.0
     assert not claim.exists()  # released once stored
 
@@ -304,16 +302,13 @@ def test_a_failed_compile_releases_its_claim(tmp_path):
     """A kernel whose compile fails stores nothing, so its claim
     (beamcontact/_compile_claims.py) is released at once (``_native._FailedCompiles``),
     not only when the process ends: another process would wait for it otherwise."""
-    (tmp_path / "test_kernels.py").write_text(_KERNELS + '''
+    prelude = _kernels_module(tmp_path, '''
 @ours
 def broken(x):
     return x + "not a number"
 ''')
     out = _python(
-        f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
-        "import numpy as np; import beamcontact.test_kernels as k; "
-        "from beamcontact import _native\n"
-        "try:\n    k.broken(np.arange(3.0))\nexcept Exception as exc:\n"
+        prelude + "try:\n    k.broken(np.arange(3.0))\nexcept Exception as exc:\n"
         "    print(type(exc).__name__)\n"
         "print(sorted(p.name.split('-')[0] for p in _native._CACHE_DIR.iterdir() "
         "if p.name.startswith('compiling-')))", str(tmp_path / "cache"))
@@ -326,11 +321,8 @@ def test_a_kernel_loads_from_the_cache_without_parsing_its_bitcode(tmp_path):
     its machine code from the object file's symbol table, exactly those the bitcode
     exports; a compile that links the kernel (``other`` calls ``terms``) parses the
     bitcode then. Every result is Python's, bit for bit."""
-    (tmp_path / "test_kernels.py").write_text(_KERNELS)
     cache = str(tmp_path / "cache")
-    prelude = (f"import beamcontact; beamcontact.__path__.append({str(tmp_path)!r}); "
-               "import numpy as np; import beamcontact.test_kernels as k; "
-               "from beamcontact import _native; x = np.arange(5.0) / 3.0\n")
+    prelude = _kernels_module(tmp_path) + "x = np.arange(5.0) / 3.0\n"
     _python(prelude + "k.terms(x)", cache)  # compiled whole and cached
     out = _python(prelude + '''
 from llvmlite import binding
