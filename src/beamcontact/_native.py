@@ -203,6 +203,23 @@ def set_threads(count: int | None) -> None:
     numba.set_num_threads(_most_threads if count is None else min(count, _most_threads))
 
 
+@contextlib.contextmanager
+def one_thread():
+    """The parallel kernels on one thread within the block, then on the most again.
+
+    For the start of a run (the model, the contact set at t = 0, the initial
+    acceleration): a few calls of the kernels, as fast on one thread as on two (0.12 s
+    for the stiff drop of benchmarks/peers.py either way), and never stalled by another
+    process that keeps a core busy meanwhile, such as the figures' drawer importing
+    matplotlib (:mod:`beamcontact.drawer`; beside it the start on two threads took
+    0.25 s)."""
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        set_threads(None)
+
+
 def _cpu_sample() -> tuple[float, float, float] | None:
     """(wall clock, CPU seconds spent by all processes on the cores this process may use,
     CPU seconds of this process), or None where /proc/stat cannot be read."""
@@ -244,6 +261,7 @@ class CoreShare:
         self.window, self._sample = window, sample
         self._last = sample() if self.most > 1 else None
         self.threads = self.most
+        numba.set_num_threads(self.threads)
 
     def update(self) -> int:
         """Set and return the thread count for the next parallel loops."""

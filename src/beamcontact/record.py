@@ -12,8 +12,6 @@ step.
 import math
 import os
 import re
-import signal
-import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -22,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from beamcontact.drawer import Call, Drawer, draw_here
 from beamcontact.io.case import Case, at_fraction
 from beamcontact.io.results import (
     DISK_RESERVE,
@@ -33,81 +32,6 @@ from beamcontact.io.results import (
 )
 from beamcontact.io.vtk import VtkSeries, write_obstacles
 from beamcontact.setup.model import Discretization, point_sampler, polyline_matrix
-
-# a forked copy drawing figures is given this long after the figures drawn here (and
-# at least FORK_GRACE_S) before it is stopped and its figures are drawn here instead
-FORK_GRACE_FACTOR, FORK_GRACE_S = 5.0, 10.0
-
-
-def _side_by_side(first: list, second: list, fork: bool) -> None:
-    """Call the functions of ``first`` here and, with ``fork``, those of ``second`` at
-    the same time in a forked copy of this process (on the second core: the figures of
-    a run take half the time). If the copy cannot be made, fails, or has not finished
-    FORK_GRACE_FACTOR times the time of ``first`` after it (at least FORK_GRACE_S), it
-    is stopped and ``second`` is called here, so that its errors are raised here. An
-    exception here (an interrupt) stops the copy and calls nothing more. On a system
-    other than Linux, with one core or with JAX imported, everything is called here."""
-    pid = _forked(second) if fork and second else None
-    try:
-        start = time.monotonic()
-        for call in first:
-            call()
-        drawn = pid is not None and _exited_cleanly(
-            pid, max(FORK_GRACE_S, FORK_GRACE_FACTOR * (time.monotonic() - start)))
-        pid = None
-    finally:
-        if pid is not None:
-            _stop(pid)
-    if not drawn:
-        for call in second:
-            call()
-
-
-def _forked(calls: list) -> int | None:
-    """The process id of a forked copy that makes ``calls`` and exits (0: all made),
-    None if none could be made. The copy writes nothing to this process's streams and
-    never returns into the caller."""
-    # Linux only (macOS's system libraries are not safe in a forked copy); JAX's threads
-    # (the JAX engine) may hold locks a copy would wait for, and JAX warns at every fork
-    # (the native path imports no JAX)
-    if (not sys.platform.startswith("linux") or (os.cpu_count() or 1) < 2
-            or "jax" in sys.modules):
-        return None
-    try:
-        pid = os.fork()
-    except OSError:
-        return None
-    if pid == 0:
-        code = 1
-        try:
-            # streams of its own: another thread may have held the parent's at the fork
-            sys.stdout = sys.stderr = open(os.devnull, "w")  # noqa: SIM115
-            for call in calls:
-                call()
-            code = 0
-        finally:
-            os._exit(code)
-    return pid
-
-
-def _exited_cleanly(pid: int, within: float) -> bool:
-    """Whether process ``pid`` exits with status 0 within ``within`` seconds (else it is
-    stopped)."""
-    deadline = time.monotonic() + within
-    while time.monotonic() < deadline:
-        done, status = os.waitpid(pid, os.WNOHANG)
-        if done:
-            return os.waitstatus_to_exitcode(status) == 0
-        time.sleep(0.005)
-    _stop(pid)
-    return False
-
-
-def _stop(pid: int) -> None:
-    """Stop process ``pid`` and collect it."""
-    with suppress(OSError):
-        os.kill(pid, signal.SIGKILL)
-        os.waitpid(pid, 0)
 
 
 def _reason(exc: Exception) -> str:
@@ -359,48 +283,44 @@ class RunRecord:
                              "final": float(h[f"{n}_{c}"][-1])}
                 for n in self.points.names for c in ("ux", "uy")}
 
-    def plots(self, fork: bool = False) -> None:
+    def plots(self, drawer: "Drawer | None" = None) -> None:
         """Into out_dir/plots: shapes.png, points.png; dynamics also energies.png,
         snapshots.png (a grid of instants) and animation.gif (every snapshot, at most
-        300). With ``fork``, half of them in a forked copy of the process at the same time
-        (:func:`_side_by_side`; for a process of our own, the command line's)."""
+        300). With a ``drawer`` (the command line's), drawn there, half by each of its
+        two processes (:mod:`beamcontact.drawer`); else here."""
         if self.out_dir is None or not self.snapshots or self.broken:
             return
+        first, second = self._figures()
         with writing(self.out_dir / "plots", self, errors=(OSError,)):
-            self._plots(fork)
+            if drawer is None:
+                draw_here(first + second)
+            else:
+                drawer.draw(first, second)
 
-    def _plots(self, fork: bool) -> None:
-        from beamcontact.plot import (
-            animate,
-            plot_energies,
-            plot_point_histories,
-            plot_shapes,
-            plot_snapshots,
-        )
-
+    def _figures(self) -> tuple[list[Call], list[Call]]:
+        """The figures as calls into beamcontact.plot, in two halves of about equal cost
+        (0.15 s each for the peer drop of benchmarks/)."""
         plots, title = self.out_dir / "plots", self.case.title
         n = len(self.snapshots)
         picks = np.unique(np.linspace(0, n - 1, min(n, 9)).astype(int))
         shapes = [(self.snapshots[i].parameter, self.axes(self.snapshots[i].x)) for i in picks]
         walls = self.case.obstacles
         history = self.history()
-        # two halves of about equal cost (0.25 s each for the peer drop of benchmarks/)
-        first, second = [], []
-        first.append(lambda: plot_shapes([(f"{self.abscissa} {p:.3g}", a) for p, a in shapes],
-                                         self.axes(self.x_ref), plots / "shapes.png", title,
-                                         walls))
+        first: list[Call] = [("plot_shapes", (
+            [(f"{self.abscissa} {p:.3g}", a) for p, a in shapes], self.axes(self.x_ref),
+            plots / "shapes.png", title, walls), {})]
+        second: list[Call] = []
         if self.points.names:
-            first.append(lambda: plot_point_histories(history, self.abscissa,
-                                                      self.points.names,
-                                                      plots / "points.png", title))
+            first.append(("plot_point_histories", (
+                history, self.abscissa, self.points.names, plots / "points.png", title), {}))
         if self.abscissa == "t":
-            first.append(lambda: plot_energies(history, plots / "energies.png", title))
-            second.append(lambda: plot_snapshots(
+            first.append(("plot_energies", (history, plots / "energies.png", title), {}))
+            second.append(("plot_snapshots", (
                 shapes, [b.section.half_depth for b in self.disc.beams],
-                plots / "snapshots.png", title, walls))
+                plots / "snapshots.png", title, walls), {}))
             frames = [(s.parameter, self.axes(s.x))
                       for s in self.snapshots[::int(np.ceil(n / 300))]]
             if len(frames) > 1:
-                second.append(lambda: animate(frames, self.out_dir / "animation.gif", title,
-                                              obstacles=walls))
-        _side_by_side(first, second, fork)
+                second.append(("animate", (frames, self.out_dir / "animation.gif", title),
+                               {"obstacles": walls}))
+        return first, second

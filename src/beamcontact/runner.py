@@ -18,12 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from beamcontact import __version__, _warmup, require_x64
+from beamcontact import __version__, _native, _warmup, require_x64
 from beamcontact._native import Stopwatch
 from beamcontact.assembly.model import LoadState, Model
 from beamcontact.contact.laws import CoarseGrained
 from beamcontact.contact.overlap import describe, initial_overlaps, obstacle_overlaps
 from beamcontact.contact.resolution import contact_resolution, resolution_warning
+from beamcontact.drawer import Drawer
 from beamcontact.dynamics.control import KINDS, EnergyAccount, total_energy
 from beamcontact.dynamics.driver import StepBatch, solve_dynamic
 from beamcontact.dynamics.hht import DynState
@@ -111,14 +112,14 @@ class _Tally:
 
 def run_case(case: Case, case_text: str, out_dir: Path | None,
              progress: Progress | None = None, restart: bool = False,
-             overwrite: bool = False, fork_figures: bool = False) -> dict:
+             overwrite: bool = False, drawer: Drawer | None = None) -> dict:
     """Run ``case``, write its results into ``out_dir`` (if given); returns the summary."""
-    return execute(case, case_text, out_dir, progress, restart, overwrite, fork_figures)[0]
+    return execute(case, case_text, out_dir, progress, restart, overwrite, drawer)[0]
 
 
 def execute(case: Case, case_text: str, out_dir: Path | None,
             progress: Progress | None = None, restart: bool = False,
-            overwrite: bool = False, fork_figures: bool = False) -> tuple[dict, RunRecord]:
+            overwrite: bool = False, drawer: Drawer | None = None) -> tuple[dict, RunRecord]:
     """Run ``case``; returns the summary and the run's in-memory record.
 
     ``case_text`` is the TOML stored in results.h5 and written as ``case.toml`` (the case
@@ -126,9 +127,9 @@ def execute(case: Case, case_text: str, out_dir: Path | None,
     after every accepted step. The run holds ``out_dir`` throughout
     (:func:`~beamcontact.io.output_folder.claimed`: one run per folder; earlier results
     are refused unless ``restart`` continues them or ``overwrite`` replaces them).
-    ``fork_figures``: half of the figures drawn in a forked copy of the process
-    (:meth:`~beamcontact.record.RunRecord.plots`), for a process of our own (the
-    command line), not a user's or a sweep's worker.
+    ``drawer``: the process that draws the figures (:mod:`beamcontact.drawer`), started
+    by a process of our own (the command line), not a user's or a sweep's worker;
+    without one they are drawn here.
 
     BLAS/LAPACK (OpenBLAS, used by JAX's CPU linear solves) runs on one thread during the
     run: the summation order of a threaded LU depends on the thread count, and in the
@@ -149,11 +150,11 @@ def execute(case: Case, case_text: str, out_dir: Path | None,
     with claimed(out_dir, restart=restart, overwrite=overwrite), \
             threadpool_limits(limits=1, user_api="blas"):
         return _execute(case, case_text or case.to_toml(), out_dir, progress, restart,
-                        fork_figures)
+                        drawer)
 
 
 def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progress | None,
-             restart: bool, fork_figures: bool) -> tuple[dict, RunRecord]:
+             restart: bool, drawer: Drawer | None) -> tuple[dict, RunRecord]:
     require_x64()
     if restart and case.analysis.kind != "dynamic":
         raise CaseError("--restart continues dynamic runs only (analysis.kind = \"dynamic\")")
@@ -162,12 +163,13 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     watch = Stopwatch()
     if case.analysis.kind == "dynamic":
         compile_loop_early(case)
-    prepared = prepare(case)
+    with _native.one_thread():
+        prepared = prepare(case)
     model, disc, contact = prepared.model, prepared.disc, prepared.contact
     warnings = _start_warnings(prepared, restart)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
     try:
-        summary, record = run(prepared, case_text, out_dir, progress, restart, fork_figures)
+        summary, record = run(prepared, case_text, out_dir, progress, restart, drawer)
     except OutputError as exc:  # before the first step: the summary says so, if it can
         if out_dir is not None:
             with suppress(OSError):
@@ -228,8 +230,6 @@ def _engine_used(case: Case, model: Model, contact) -> dict:
     if name == "jax":
         used["linear_solver_used"] = "sparse" if model.sparse else "dense"
     else:
-        from beamcontact import _native
-
         used["linear_solver_used"] = "bordered banded"
         used["threads"] = _native.most_threads()
     return used
@@ -265,7 +265,7 @@ def _check_initial_overlap(case: Case, model: Model, contact) -> list[str]:
 
 
 def _run_static(prepared: Prepared, case_text, out_dir, progress,
-                _restart, fork_figures) -> tuple[dict, RunRecord]:
+                _restart, drawer) -> tuple[dict, RunRecord]:
     case, disc, model = prepared.case, prepared.disc, prepared.model
     rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "load_factor",
                     ENERGY_COLUMNS)
@@ -298,7 +298,7 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress,
     except OutputError as exc:
         summary = {**tally.failed_output("load_factor", exc),
                    "final_load_factor": tally.reached}
-    _finish(rec, summary, fork_figures)
+    _finish(rec, summary, drawer)
     return {**summary, "extremes": rec.extremes()}, rec
 
 
@@ -311,13 +311,13 @@ def _rejections(before: np.ndarray, since: dict) -> dict:
     return {k: n for k, n in total.items() if n > 0}
 
 
-def _finish(rec: RunRecord, summary: dict, fork_figures: bool) -> None:
+def _finish(rec: RunRecord, summary: dict, drawer: Drawer | None) -> None:
     """Close the files and draw the figures; a failure of either ends the run as
     "output_failed" (the summary says so, with what was kept). An interrupt while
     drawing (a second Ctrl-C, or a signal) skips the figures, never the summary."""
     try:
         rec.close()
-        rec.plots(fork_figures)
+        rec.plots(drawer)
     except OutputError as exc:
         if summary["status"] == "completed":
             summary.update(status="output_failed",
@@ -467,11 +467,12 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
 
 
 def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
-                 restart, fork_figures) -> tuple[dict, RunRecord]:
+                 restart, drawer) -> tuple[dict, RunRecord]:
     case, contact = prepared.case, prepared.contact
     an = case.analysis
     interval = case.output.vtk_interval or an.t_end / 100.0
-    start, begin = _dynamic_start(prepared, case_text, out_dir, restart)
+    with _native.one_thread():
+        start, begin = _dynamic_start(prepared, case_text, out_dir, restart)
     rec = start.rec
     next_snapshot = [np.floor(float(start.state.t) / interval + 1e-9) * interval + interval]
     tally = _Tally(steps=start.step0, iterations=start.iterations, cutbacks=start.cutbacks,
@@ -513,7 +514,7 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
     except OutputError as exc:
         summary = {**tally.failed_output("t", exc), "rejections": tally.rejections(),
                    "t_final": tally.reached}
-    _finish(rec, summary, fork_figures)
+    _finish(rec, summary, drawer)
     summary["restarted_from_step"] = start.step0 if restart else None
     summary["mean_iterations_per_step"] = summary["newton_iterations"] / max(summary["steps"], 1)
     return {**summary, **_dynamic_results(rec, contact)}, rec
