@@ -233,6 +233,20 @@ def fake_runner(monkeypatch):
     return calls
 
 
+@pytest.mark.parametrize(("by", "code"), [(None, 130), ("SIGTERM", 143)])
+def test_a_run_interrupted_while_drawing_exits_as_interrupted(fake_runner, tmp_path, by,
+                                                              code):
+    """The steps completed, the figures were not drawn: the exit code says it was stopped
+    (a scheduler's SIGTERM is not a success), the message what is there."""
+    figures = f"not drawn: interrupted by {by or 'the user'}"
+    fake_runner["do"] = lambda progress: {**SUMMARY, "figures": figures, "signal": by}
+    result = CliRunner().invoke(app, ["run", "--out", str(tmp_path / "out")])
+    assert result.exit_code == code, result.output
+    assert "completed: t_end reached" in result.stdout
+    assert (f"interrupted by {by or 'the user'} while drawing the figures: every result "
+            f"but the figures is in") in result.stderr
+
+
 def test_run_hands_a_progress_info_callback_to_the_runner(fake_runner, tmp_path):
     def do(progress):
         for info in DYNAMIC:

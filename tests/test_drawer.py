@@ -64,13 +64,21 @@ def _made_by(out, name) -> int:
 
 
 def _gone(pid: int, within: float = 10.0) -> bool:
-    """Whether process ``pid`` has ended (a child of init is collected by it)."""
+    """Whether process ``pid`` has ended (a zombie counts: an orphan is collected by
+    whatever adopted it, which in a container may never do so)."""
     deadline = time.monotonic() + within
     while time.monotonic() < deadline:
         try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
+            with open(f"/proc/{pid}/stat") as f:
+                if f.read().rsplit(")", 1)[1].split()[0] in "ZX":
+                    return True
+        except FileNotFoundError:
             return True
+        except OSError:
+            try:
+                os.kill(pid, 0)
+            except ProcessLookupError:
+                return True
         time.sleep(0.02)
     return False
 
@@ -81,11 +89,14 @@ def test_the_halves_are_drawn_by_the_drawer_and_its_copy(figures):
         assert drawer.draw([_mark(figures, "a"), _mark(figures, "b")],
                            [_mark(figures, "c"), _mark(figures, "d")])
         pid = drawer.process.pid
+        # both have exited, the copy collected by the drawer, the drawer by the run
+        assert drawer.process.returncode == 0
     here = os.getpid()
     assert _made_by(figures, "a") == _made_by(figures, "b") == pid != here
     copy = _made_by(figures, "c")
     assert copy == _made_by(figures, "d") not in (pid, here)
-    assert drawer.process.poll() is not None and _gone(copy)
+    with pytest.raises(ProcessLookupError):
+        os.kill(copy, 0)
 
 
 def test_plot_functions_by_name_are_those_of_beamcontact_plot(figures):
@@ -100,9 +111,24 @@ def test_plot_functions_by_name_are_those_of_beamcontact_plot(figures):
 
 
 def test_no_drawer_on_one_core(monkeypatch):
-    monkeypatch.setattr(os, "cpu_count", lambda: 1)
+    monkeypatch.setattr(drawer_module, "cores", lambda: 1)
     with Drawer.started() as drawer:
         assert drawer is None
+
+
+@linux_only
+def test_the_cores_are_those_this_process_may_use():
+    assert drawer_module.cores() == len(os.sched_getaffinity(0))
+
+
+@linux_only
+def test_a_drawer_with_another_beamcontact_leaves_the_figures_to_the_run(figures,
+                                                                          monkeypatch):
+    monkeypatch.setattr(drawer_module, "_package", lambda: "/elsewhere/beamcontact")
+    with Drawer.started() as drawer:
+        assert not drawer.draw([_mark(figures, "a")], [_mark(figures, "b")])
+        assert drawer.process.returncode == 1
+    assert _made_by(figures, "a") == _made_by(figures, "b") == os.getpid()
 
 
 @linux_only
@@ -131,7 +157,7 @@ def test_a_failing_drawer_leaves_every_figure_to_the_run(figures):
 
 @linux_only
 def test_a_hanging_drawer_is_stopped_and_the_figures_drawn_here(figures, monkeypatch):
-    monkeypatch.setattr(drawer_module, "STALL_S", 1.0)
+    monkeypatch.setattr(drawer_module, "STALL_S", 3.0)  # once it has imported
     here = os.getpid()
     hangs = ("figs_for_tests:hangs_unless_in", (here, str(figures), "c"), {})
     start = time.monotonic()
@@ -196,3 +222,28 @@ def test_obstacles_reach_the_drawer_as_they_are():
     case = bc.load_case(path("fibre_pile", "case_cg.toml"))
     assert len(case.obstacles) == 3
     assert pickle.loads(pickle.dumps(case.obstacles)) == case.obstacles
+
+
+@pytest.mark.parametrize("signal_name", [None, "SIGTERM"])
+def test_figures_interrupted_are_in_the_summary(signal_name):
+    """A Ctrl-C or a signal while the figures are drawn: the summary keeps the status of
+    the steps and says the figures were not drawn, and by what (the command line exits
+    as interrupted then: tests/test_cli_polish.py)."""
+    import signal
+
+    from beamcontact import runner
+    from beamcontact.stop_signals import Terminated
+
+    class Record:
+        def close(self):
+            pass
+
+        def plots(self, drawer):
+            raise (KeyboardInterrupt() if signal_name is None
+                   else Terminated(signal.Signals[signal_name]))
+
+    summary = {"status": "completed"}
+    runner._finish(Record(), summary, None)
+    by = signal_name or "the user"
+    assert summary == {"status": "completed", "figures": f"not drawn: interrupted by {by}",
+                       "signal": signal_name}

@@ -197,10 +197,16 @@ def single_thread() -> None:
     numba.set_num_threads(1)
 
 
+# depth of the blocks of one_thread entered (the start of a run, on its main thread)
+_serial = 0
+
+
 def set_threads(count: int | None) -> None:
     """Run the parallel kernels on ``count`` threads from now on (None: the most this
-    process may use, :func:`single_thread` or ``NUMBA_NUM_THREADS``)."""
-    numba.set_num_threads(_most_threads if count is None else min(count, _most_threads))
+    process may use, :func:`single_thread` or ``NUMBA_NUM_THREADS``); one within
+    :func:`one_thread`."""
+    most = 1 if _serial else _most_threads
+    numba.set_num_threads(most if count is None else min(count, most))
 
 
 @contextlib.contextmanager
@@ -212,11 +218,14 @@ def one_thread():
     for the stiff drop of benchmarks/peers.py either way), and never stalled by another
     process that keeps a core busy meanwhile, such as the figures' drawer importing
     matplotlib (:mod:`beamcontact.drawer`; beside it the start on two threads took
-    0.25 s)."""
+    0.25 s). :func:`set_threads` within the block keeps one thread."""
+    global _serial
+    _serial += 1
     numba.set_num_threads(1)
     try:
         yield
     finally:
+        _serial -= 1
         set_threads(None)
 
 

@@ -303,6 +303,13 @@ def _report_run(summary: dict, out: Path) -> None:
     for warning in summary.get("warnings", []):
         typer.echo(f"warning: {warning}", err=True)
     typer.echo(f"results in {out}")
+    if summary.get("figures", "").startswith("not drawn: interrupted"):
+        import signal
+
+        name = summary.get("signal")
+        typer.echo(f"{summary['figures'].replace('not drawn: ', '')} while drawing the "
+                   f"figures: every result but the figures is in {out}", err=True)
+        raise typer.Exit(130 if name is None else 128 + signal.Signals[name])
     if summary["status"] != "completed":
         raise typer.Exit(1)
 
@@ -469,22 +476,29 @@ _RAN = False
 
 
 def main() -> None:
-    """Console-script entry point.
+    """The command line in this process (it raises SystemExit with the exit code).
 
     The process ends with its heap frozen (``gc.freeze``): the cyclic collection that
     Python runs at exit would otherwise walk the objects of JAX and Numba once more, half
-    a second of every run, for a process that frees everything anyway. After `run`, it
-    ends without the interpreter's teardown (:func:`_end_now`)."""
+    a second of every run, for a process that frees everything anyway."""
+    try:
+        app(prog_name="beamcontact")
+    finally:
+        gc.freeze()
+
+
+def console() -> None:
+    """Console-script entry point (``beamcontact``, ``python -m beamcontact.cli``):
+    :func:`main`, and after `run` the process ends without the interpreter's teardown
+    (:func:`_end_now`); the process is ours, so nothing calls on after it."""
     global _RAN
     _RAN = False
     try:
-        app(prog_name="beamcontact")
+        main()
     except SystemExit as exc:
         if _RAN:
             _end_now(exc.code)
         raise
-    finally:
-        gc.freeze()
 
 
 def _end_now(code) -> None:
@@ -512,4 +526,4 @@ def _end_now(code) -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(console())

@@ -15,13 +15,19 @@ copy-on-write, and every page the run then writes is copied (Python's reference 
 write to every object it touches): a copy that only slept made the start of a run
 0.07 s slower (the model built in 0.12 s instead of 0.05 s, twice the page faults). The
 drawer never imports JAX and writes nothing to the terminal; it runs in a session of
-its own, so that Ctrl-C reaches only the run, and exits when the run closes its input.
+its own, so that Ctrl-C reaches only the run, and exits when the run closes its input
+(a run that ends without figures asks it to end and gives it :data:`END_S` to do so
+cleanly: matplotlib holds a lock file while it builds its font cache on a first import).
+It runs with ``-P`` (no module of the working folder) and exits at once if the
+beamcontact it imports is not the run's. It is started only where the process may use
+two cores or more.
 
 Whatever goes wrong, every figure is drawn once where it can be: a drawer that cannot be
-started, exits with an error, or reports no figure for :data:`STALL_S` is stopped and
-the run draws them all itself, so that their errors are the run's (an
-:class:`~beamcontact.record.OutputError` with its reason). An interrupt of the run while
-it waits stops the drawer and draws nothing more. ``tests/test_drawer.py``.
+started, exits with an error, is not ready within :data:`READY_S` or then reports no
+figure for :data:`STALL_S` is stopped and the run draws them all itself, so that their
+errors are the run's (an :class:`~beamcontact.record.OutputError` with its reason). An
+interrupt of the run while it waits stops the drawer and draws nothing more (the
+command line then says so and exits as interrupted). ``tests/test_drawer.py``.
 """
 
 import importlib
@@ -41,6 +47,14 @@ Call = tuple[str, tuple, dict]
 # a drawer that reports no finished figure for this long is stopped (a figure takes
 # well under a second; the animation of 300 snapshots of a large model a few seconds)
 STALL_S = 60.0
+# the time a drawer is given to import matplotlib (on a first import, it also builds its
+# font cache)
+READY_S = 120.0
+# a drawer asked to stop before it drew gets this long to end cleanly, then SIGKILL
+# (matplotlib holds a lock file while it builds its font cache)
+END_S = 5.0
+
+READY, DRAWN = b"r", b"."
 
 
 def draw_here(calls: list[Call]) -> None:
@@ -51,12 +65,20 @@ def draw_here(calls: list[Call]) -> None:
             *args, **kwargs)
 
 
+def cores() -> int:
+    """The cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
 class Drawer:
     """A process that imports :mod:`beamcontact.plot` and draws the figures it is sent
     (:meth:`draw`), or exits when its input closes without any."""
 
     def __init__(self, process: subprocess.Popen):
         self.process = process
+        self._ready = False
 
     @classmethod
     @contextmanager
@@ -73,12 +95,13 @@ class Drawer:
     def _start(cls) -> "Drawer | None":
         # one core: it would only take turns with the run; its pipes and process group
         # are POSIX's
-        if (os.cpu_count() or 1) < 2 or os.name != "posix":
+        if cores() < 2 or os.name != "posix" or not sys.executable:
             return None
-        try:
+        try:  # no module of the working folder (-P); it checks it has our package
             process = subprocess.Popen(
-                [sys.executable, "-m", "beamcontact.drawer"], stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, start_new_session=True)
+                [sys.executable, "-P", "-m", "beamcontact.drawer", _package()],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                start_new_session=True)
         except OSError:
             return None
         return cls(process)
@@ -90,26 +113,25 @@ class Drawer:
         n = len(first) + len(second)
         try:
             job = pickle.dumps((first, second))
-        except (pickle.PicklingError, TypeError, AttributeError):  # drawn here then
+        except Exception:  # noqa: BLE001  (drawn here, where the error shows)
             job = None
         try:
             drawn = n > 0 and job is not None and self._send(job) and self._finished(n)
         except BaseException:
-            self.stop()
+            self.stop(hung=True)
             raise
         if not drawn:
-            self.stop()
+            self.stop(hung=True)
             draw_here(first + second)
         return drawn
 
     def _send(self, job: bytes) -> bool:
-        """Whether the drawer took ``job`` (it may still be importing: it is given
-        STALL_S)."""
+        """Whether the drawer took ``job`` (it reads once it has imported)."""
         fd, view = self.process.stdin.fileno(), memoryview(job)
         try:
             os.set_blocking(fd, False)
             while view:
-                if not select.select([], [fd], [], STALL_S)[1]:
+                if not select.select([], [fd], [], READY_S)[1]:
                     return False
                 view = view[os.write(fd, view):]
         except OSError:  # the drawer has exited
@@ -121,65 +143,96 @@ class Drawer:
 
     def _finished(self, n: int) -> bool:
         """Whether the drawer and its copy report ``n`` figures drawn (each after its
-        file is closed); False if they exit first or report none for STALL_S."""
+        file is closed) and exit; False if they exit first, or report nothing for
+        READY_S before the drawer is ready and STALL_S after."""
         reports, reported = self.process.stdout.fileno(), 0
-        while reported < n:
-            if not select.select([reports], [], [], STALL_S)[0]:
+        while True:
+            if not select.select([reports], [], [], STALL_S if self._ready else READY_S)[0]:
                 return False
             got = os.read(reports, 64)
             if not got:  # both processes have exited
-                return False
-            reported += len(got)
-        return True
+                break
+            self._ready = self._ready or READY in got
+            reported += got.count(DRAWN)
+        return self.process.wait() == 0 and reported == n
 
-    def stop(self) -> None:
-        """Stop the drawer and its copy if they run, collect the drawer, close the
-        pipes."""
+    def stop(self, hung: bool = False) -> None:
+        """Stop the drawer and its copy if they run (at once if ``hung``, else after
+        END_S to end cleanly), collect the drawer, close the pipes."""
         if self.process.returncode is None:
-            # its session's group, the copy too (which may outlive it); until the drawer
-            # is collected, its id cannot name another group
+            # its session's group, the copy too; until the drawer is collected, its id
+            # cannot name another group
             with suppress(OSError):
-                os.killpg(self.process.pid, signal.SIGKILL)
-            self.process.wait()
+                os.killpg(self.process.pid, signal.SIGKILL if hung else signal.SIGTERM)
+            try:
+                self.process.wait(timeout=None if hung else END_S)
+            except subprocess.TimeoutExpired:
+                with suppress(OSError):
+                    os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait()
         for stream in (self.process.stdin, self.process.stdout):
             with suppress(OSError):
                 stream.close()
 
 
-def _serve(jobs: int, reports: int) -> None:
-    """The drawer: import, wait for the figures, draw them (half by a forked copy),
-    report each drawn."""
+def _package() -> str:
+    """The folder of the beamcontact package this process runs."""
+    import beamcontact
+
+    return os.path.dirname(os.path.realpath(beamcontact.__file__))
+
+
+def _serve(jobs: int, reports: int, package: str) -> None:
+    """The drawer: import, say so, wait for the figures, draw them (half by a forked
+    copy), report each drawn. It exits at once if its beamcontact is not the run's
+    (in ``package``): the run draws them then."""
+    if _package() != package:
+        raise RuntimeError("another beamcontact than the run's")
     import beamcontact.plot  # noqa: F401  (what this process is for)
 
+    os.write(reports, READY)
     chunks = []
     while chunk := os.read(jobs, 1 << 20):
         chunks.append(chunk)
     if not chunks:  # the run ended without figures
         return
     first, second = pickle.loads(b"".join(chunks))
-    if second and sys.platform.startswith("linux"):  # a fork is safe there
-        if os.fork() == 0:
+    copy = None
+    if second and sys.platform.startswith("linux") and cores() > 1:  # a fork is safe there
+        with suppress(OSError):  # else both halves here
+            copy = os.fork()
+        if copy == 0:
             _draw_reporting(second, reports)
             return
-        second = []
+        if copy is not None:
+            second = []
     _draw_reporting(first + second, reports)
+    if copy is not None:
+        _, status = os.waitpid(copy, 0)
+        if os.waitstatus_to_exitcode(status) != 0:
+            raise RuntimeError("the drawer's copy failed")
 
 
 def _draw_reporting(calls: list[Call], reports: int) -> None:
     for call in calls:
         draw_here([call])
-        os.write(reports, b".")
+        os.write(reports, DRAWN)
+
+
+def _end(*_) -> None:
+    raise SystemExit(1)  # unwinds: a lock file matplotlib holds is removed
 
 
 if __name__ == "__main__":
+    signal.signal(signal.SIGTERM, _end)
     # the reports keep the pipe; anything printed goes nowhere
     _reports = os.dup(1)
     os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
     code = 1
     try:
-        _serve(0, _reports)
+        _serve(0, _reports, sys.argv[1])
         code = 0
     finally:
-        # without the interpreter's teardown (0.05-0.1 s with matplotlib): the run
-        # waits for the reports, not for the exit, and every file is closed by then
+        # without the interpreter's teardown (0.05-0.1 s with matplotlib): every file is
+        # closed by then
         os._exit(code)

@@ -322,8 +322,11 @@ def _finish(rec: RunRecord, summary: dict, drawer: Drawer | None) -> None:
         if summary["status"] == "completed":
             summary.update(status="output_failed",
                            message=f"{exc}; the run completed and the rest is written")
-    except KeyboardInterrupt:
-        summary["figures"] = "not drawn: interrupted"
+    except KeyboardInterrupt as exc:
+        by = stopped_by(exc)
+        summary["figures"] = f"not drawn: interrupted by {by}"
+        if summary["status"] != "interrupted":  # the command line exits as interrupted
+            summary["signal"] = None if by == "the user" else by
 
 
 def _restart_state(case: Case, out_dir: Path, model: Model) -> tuple[DynState, dict]:
