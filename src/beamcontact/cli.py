@@ -489,10 +489,15 @@ def main() -> None:
 
 def console() -> None:
     """Console-script entry point (``beamcontact``, ``python -m beamcontact.cli``):
-    :func:`main`, and after `run` the process ends without the interpreter's teardown
+    :func:`main` with one OpenBLAS thread unless ``OPENBLAS_NUM_THREADS`` says
+    otherwise, and after `run` the process ends without the interpreter's teardown
     (:func:`_end_now`); the process is ours, so nothing calls on after it."""
     global _RAN
     _RAN = False
+    # OpenBLAS's threads, made at numpy's import, spin on the cores for 0.1-0.2 s, beside
+    # the start of a run and its figures' drawer; a run limits BLAS to one thread anyway
+    # (runner.run_case), so the command line's processes start with one (0.04 s a run)
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     try:
         main()
     except SystemExit as exc:
