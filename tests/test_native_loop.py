@@ -151,6 +151,38 @@ def test_interrupt_inside_the_compiled_loop_keeps_every_accepted_step():
         assert a.t == b.t and np.array_equal(a.state.u, b.state.u)
 
 
+def test_interrupt_inside_the_host_loop_keeps_every_accepted_step():
+    """Ctrl-C in the host loop (the JAX engine's, and the native engine's while a helper
+    compiles its loop), raised from another thread early and after some steps: every
+    step accepted until then reaches on_step, in order, each the same as in the
+    uninterrupted run; the loop hands them over in batches (driver.EMIT_SECONDS), none
+    lost to the interrupt."""
+    raw = _drop("cg", 0.8)
+    full = _solve(raw, host=False)[1]
+    raw["analysis"]["t_end"] = 3.0
+    handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        for delay in (0.02, 0.3):
+            start = dynamic_start(prepare(parse_case(raw)))
+            rows, batches = [], []
+            timer = threading.Timer(delay, _thread.interrupt_main)
+            try:
+                with pytest.raises(KeyboardInterrupt):
+                    timer.start()
+                    solve_dynamic(HostLooped(start.engine), start.state, 3.0,
+                                  start.prepared.length, start.control, on_step=rows.append,
+                                  on_steps=lambda b, seen=batches: seen.append(len(b)))
+            finally:
+                timer.cancel()
+            assert [r.step for r in rows] == list(range(1, len(rows) + 1))
+            assert sum(batches) == len(rows)
+            for a, b in zip(rows, full[:-1], strict=False):
+                assert a.t == b.t and np.array_equal(a.state.u, b.state.u)
+        assert len(rows) > 0 and max(batches) > 1
+    finally:
+        signal.signal(signal.SIGINT, handler)
+
+
 def test_a_steps_strain_energy_is_that_of_its_state():
     """The compiled attempt takes E_strain from its last Newton evaluation, which is at the
     step's solution: it is the strain energy of the accepted state (assembly/
@@ -211,3 +243,26 @@ def test_the_residual_alone_is_the_one_of_the_evaluation_with_the_tangent():
             assert np.array_equal(r_alone, r) and np.array_equal(f_alone, f_pot)
             checked += frozen[2].shape[0] > 0
     assert checked > 5  # contact blocks took part
+
+
+def test_an_interrupt_reported_by_numba_as_a_system_error_is_an_interrupt():
+    """A signal's KeyboardInterrupt raised in Python code that compiled code calls (as
+    Numba's unpickling of constants) comes out of the dispatcher as SystemError("...
+    returned a result with an exception set"), one per level, the interrupt at the end
+    of the context chain: stop_signals.as_interrupt finds it, and nothing else."""
+    from beamcontact.stop_signals import Terminated, as_interrupt
+
+    def chained(inner: BaseException, levels: int) -> BaseException:
+        exc = inner
+        for _ in range(levels):
+            outer = SystemError("returned a result with an exception set")
+            outer.__context__ = exc
+            exc = outer
+        return exc
+
+    ctrl_c, term = KeyboardInterrupt(), Terminated(signal.SIGTERM)
+    assert as_interrupt(ctrl_c) is ctrl_c
+    assert as_interrupt(chained(ctrl_c, 1)) is ctrl_c
+    assert as_interrupt(chained(term, 2)) is term
+    assert as_interrupt(chained(ValueError(), 2)) is None
+    assert as_interrupt(SystemError()) is None and as_interrupt(OSError()) is None

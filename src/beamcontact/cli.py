@@ -230,6 +230,7 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
     from beamcontact.progress import progress_bar
     from beamcontact.record import OutputError
     from beamcontact.runner import run_case
+    from beamcontact.stop_signals import as_interrupt
 
     try:
         with progress_bar(title, enabled=show) as progress:
@@ -239,8 +240,11 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
         _fail(str(exc), 2)
     except OutputError as exc:
         _fail(f"{exc}; what was written before is in {out}", 1)
-    except KeyboardInterrupt as exc:
-        _interrupted(out, getattr(exc, "name", None))
+    except (KeyboardInterrupt, SystemError) as exc:
+        interrupt = as_interrupt(exc)
+        if interrupt is None:
+            raise
+        _interrupted(out, getattr(interrupt, "name", None))
 
 
 @contextmanager

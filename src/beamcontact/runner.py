@@ -44,7 +44,7 @@ from beamcontact.setup.start import (
     static_engine,
 )
 from beamcontact.statics.driver import StaticStep, solve_static
-from beamcontact.stop_signals import stopped_by
+from beamcontact.stop_signals import as_interrupt, stopped_by
 from beamcontact.summary import (
     contact_summary,
     effective_settings,
@@ -293,13 +293,23 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress,
                    "cutbacks": result.cutbacks, "final_load_factor": result.load_factor,
                    "solve_time_s": result.wall_time,
                    "compile_time_s": tally.first_step_s or 0.0}
-    except KeyboardInterrupt as exc:
-        summary = {**tally.interrupted("load_factor", exc), "final_load_factor": tally.reached}
+    except (KeyboardInterrupt, SystemError) as exc:
+        summary = {**tally.interrupted("load_factor", _interrupt(exc)),
+                   "final_load_factor": tally.reached}
     except OutputError as exc:
         summary = {**tally.failed_output("load_factor", exc),
                    "final_load_factor": tally.reached}
     _finish(rec, summary, drawer)
     return {**summary, "extremes": rec.extremes()}, rec
+
+
+def _interrupt(exc: BaseException) -> KeyboardInterrupt:
+    """The interrupt ``exc`` stands for (:func:`~beamcontact.stop_signals.as_interrupt`);
+    any other error is raised again."""
+    interrupt = as_interrupt(exc)
+    if interrupt is None:
+        raise exc
+    return interrupt
 
 
 def _rejections(before: np.ndarray, since: dict) -> dict:
@@ -511,8 +521,8 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
                    "solve_time_s": result.wall_time,
                    "compile_time_s": tally.first_step_s or 0.0,
                    "loop_threads": _loop_threads(begin.engine)}
-    except KeyboardInterrupt as exc:
-        summary = {**tally.interrupted("t", exc), "rejections": tally.rejections(),
+    except (KeyboardInterrupt, SystemError) as exc:
+        summary = {**tally.interrupted("t", _interrupt(exc)), "rejections": tally.rejections(),
                    "t_final": tally.reached}
     except OutputError as exc:
         summary = {**tally.failed_output("t", exc), "rejections": tally.rejections(),

@@ -34,6 +34,18 @@ class Terminated(KeyboardInterrupt):
         return signal.Signals(self.signum).name
 
 
+def as_interrupt(exc: BaseException) -> KeyboardInterrupt | None:
+    """``exc`` as the interrupt it stands for: itself, or the KeyboardInterrupt (or
+    :class:`Terminated`) that a signal raised while Python was inside a call of compiled
+    code, which Numba's dispatcher then reports as a SystemError ("returned a result with
+    an exception set") with the interrupt as its context (or the context of a
+    SystemError of a Python function the compiled code called, as Numba's unpickling of
+    constants); None for any other error."""
+    while isinstance(exc, SystemError):
+        exc = exc.__context__
+    return exc if isinstance(exc, KeyboardInterrupt) else None
+
+
 def stopped_by(exc: KeyboardInterrupt) -> str:
     """What stopped a run: "the user" (Ctrl-C) or "SIGTERM" and the like."""
     return exc.name if isinstance(exc, Terminated) else "the user"

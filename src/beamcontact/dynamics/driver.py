@@ -94,6 +94,7 @@ from beamcontact.dynamics.report import (
     Attempt,
     Overflow,
 )
+from beamcontact.stop_signals import as_interrupt
 
 if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
     from beamcontact.contact.broadphase import SearchCapacity
@@ -362,41 +363,75 @@ def _compiled_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit:
     return state, stopped, first_s
 
 
+# the host loop hands its accepted steps over at least this often [s], as the native
+# engine's compiled loop returns to Python (native_step.CALL_SECONDS): written one by one,
+# the outputs of a step cost 0.1-0.15 ms, as much as a native attempt made from Python
+EMIT_SECONDS = 0.1
+
+
 def _host_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emit,
                capacity: SearchCapacity | None, meanwhile: Callable[[], bool] | None = None
                ) -> tuple[object, Attempt | None, float | None]:
     """The loop of an engine that makes one attempt per call: (the last accepted state,
     the attempt that stopped the run or None, seconds of the first attempt). The
     candidate capacities grow on overflow (the attempt is redone). With ``meanwhile``,
-    it returns too once that says False (checked before each attempt)."""
+    it returns too once that says False (checked before each attempt). Accepted steps
+    are emitted at least every EMIT_SECONDS, and all of them before it returns or raises
+    (an interrupt loses none)."""
     contact = engine.contact
     first_s = None
-    while unfinished(ctl[T], limits) and (meanwhile is None or meanwhile()):
-        h = step_size(ctl[T], limits.t_end, ctl[H_TRY])
-        watch = Stopwatch()
-        attempt = engine.attempt(state, h, float(ctl[MOTION_FACTOR]), capacity)
-        if isinstance(attempt, Overflow):
-            capacity = contact.grown(capacity, attempt.count, attempt.load)
-            continue
-        if first_s is None:
-            first_s = watch.outside_compiles()  # one attempt, and XLA compiling it
-        values, counts = attempt.values, attempt.counts
-        ctl[ITERATIONS] += counts[C_ITERATIONS]
-        if contact is not None:
-            # the candidates after a diverged Newton solve say nothing about the solution
-            converged = bool(counts[C_FLAGS] & CONVERGED)
-            count = max(counts[C_COUNT], counts[C_COUNT_AFTER] if converged else 0)
-            load = max(counts[C_LOAD], counts[C_LOAD_AFTER] if converged else 0)
-            if not capacity.fits(int(count), int(load)):  # overflow: reallocate, redo
-                capacity = contact.grown(capacity, int(count), int(load))
+    pending: list[tuple] = []  # (state, values, counts, control row) not yet emitted
+    emitted = time.perf_counter()
+
+    def hand_over() -> None:
+        nonlocal emitted
+        if pending:
+            # an interrupt before emit leaves them pending (handed over by the finally
+            # below); once emit has started they count as handed over, never twice
+            states, values, counts, after = zip(*pending, strict=True)
+            try:
+                emit(list(states), np.stack(values), np.stack(counts), np.stack(after))
+            finally:
+                pending.clear()
+        emitted = time.perf_counter()
+
+    try:
+        while unfinished(ctl[T], limits) and (meanwhile is None or meanwhile()):
+            h = step_size(ctl[T], limits.t_end, ctl[H_TRY])
+            watch = Stopwatch()
+            try:
+                attempt = engine.attempt(state, h, float(ctl[MOTION_FACTOR]), capacity)
+            except SystemError as exc:  # an interrupt inside a compiled call
+                interrupt = as_interrupt(exc)
+                if interrupt is None:
+                    raise
+                raise interrupt from None
+            if isinstance(attempt, Overflow):
+                capacity = contact.grown(capacity, attempt.count, attempt.load)
                 continue
-        outcome = decide(ctl, values, counts, h, limits)
-        if outcome == STOP:
-            return state, attempt, first_s
-        if outcome == ACCEPT:
-            state = engine.at_time(attempt.state, float(ctl[T]))
-            emit([state], values[None], counts[None], ctl.copy()[None])
-    return state, None, first_s
+            if first_s is None:
+                first_s = watch.outside_compiles()  # one attempt, and XLA compiling it
+            values, counts = attempt.values, attempt.counts
+            ctl[ITERATIONS] += counts[C_ITERATIONS]
+            if contact is not None:
+                # the candidates after a diverged Newton solve say nothing about the solution
+                converged = bool(counts[C_FLAGS] & CONVERGED)
+                count = max(counts[C_COUNT], counts[C_COUNT_AFTER] if converged else 0)
+                load = max(counts[C_LOAD], counts[C_LOAD_AFTER] if converged else 0)
+                if not capacity.fits(int(count), int(load)):  # overflow: reallocate, redo
+                    capacity = contact.grown(capacity, int(count), int(load))
+                    continue
+            outcome = decide(ctl, values, counts, h, limits)
+            if outcome == STOP:
+                return state, attempt, first_s
+            if outcome == ACCEPT:
+                state = engine.at_time(attempt.state, float(ctl[T]))
+                pending.append((state, np.array(values), np.array(counts), ctl.copy()))
+                if time.perf_counter() - emitted >= EMIT_SECONDS:
+                    hand_over()
+        return state, None, first_s
+    finally:
+        hand_over()
 
 
 def _failure(stopped: Attempt, ctl: np.ndarray, limits: Limits) -> str:
