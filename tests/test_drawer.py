@@ -13,6 +13,7 @@ import time
 import pytest
 
 from beamcontact import drawer as drawer_module
+from beamcontact._compile_claims import process_alive
 from beamcontact.drawer import Drawer, draw_here
 
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux")
@@ -64,21 +65,12 @@ def _made_by(out, name) -> int:
 
 
 def _gone(pid: int, within: float = 10.0) -> bool:
-    """Whether process ``pid`` has ended (a zombie counts: an orphan is collected by
-    whatever adopted it, which in a container may never do so)."""
+    """Whether process ``pid`` ends within ``within`` seconds (a zombie counts: an orphan
+    is collected by whatever adopted it, which in a container may never do so)."""
     deadline = time.monotonic() + within
     while time.monotonic() < deadline:
-        try:
-            with open(f"/proc/{pid}/stat") as f:
-                if f.read().rsplit(")", 1)[1].split()[0] in "ZX":
-                    return True
-        except FileNotFoundError:
+        if not process_alive(pid):
             return True
-        except OSError:
-            try:
-                os.kill(pid, 0)
-            except ProcessLookupError:
-                return True
         time.sleep(0.02)
     return False
 

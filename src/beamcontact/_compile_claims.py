@@ -117,6 +117,12 @@ def named_process_alive(path: Path) -> bool:
             return time.time() - path.stat().st_mtime < UNWRITTEN_S
         except OSError:
             return False
+    return process_alive(pid)
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` lives: not when it has ended, nor when it only waits to be
+    collected by its parent; True for another user's process."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:

@@ -230,7 +230,7 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
     from beamcontact.progress import progress_bar
     from beamcontact.record import OutputError
     from beamcontact.runner import run_case
-    from beamcontact.stop_signals import as_interrupt
+    from beamcontact.stop_signals import interrupt_of
 
     try:
         with progress_bar(title, enabled=show) as progress:
@@ -241,10 +241,7 @@ def _run_with_progress(parsed, text: str, out: Path, title: str, *, show: bool,
     except OutputError as exc:
         _fail(f"{exc}; what was written before is in {out}", 1)
     except (KeyboardInterrupt, SystemError) as exc:
-        interrupt = as_interrupt(exc)
-        if interrupt is None:
-            raise
-        _interrupted(out, getattr(interrupt, "name", None))
+        _interrupted(out, getattr(interrupt_of(exc), "name", None))
 
 
 @contextmanager

@@ -44,7 +44,7 @@ from beamcontact.setup.start import (
     static_engine,
 )
 from beamcontact.statics.driver import StaticStep, solve_static
-from beamcontact.stop_signals import as_interrupt, stopped_by
+from beamcontact.stop_signals import interrupt_of, stopped_by
 from beamcontact.summary import (
     contact_summary,
     effective_settings,
@@ -294,22 +294,13 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress,
                    "solve_time_s": result.wall_time,
                    "compile_time_s": tally.first_step_s or 0.0}
     except (KeyboardInterrupt, SystemError) as exc:
-        summary = {**tally.interrupted("load_factor", _interrupt(exc)),
+        summary = {**tally.interrupted("load_factor", interrupt_of(exc)),
                    "final_load_factor": tally.reached}
     except OutputError as exc:
         summary = {**tally.failed_output("load_factor", exc),
                    "final_load_factor": tally.reached}
     _finish(rec, summary, drawer)
     return {**summary, "extremes": rec.extremes()}, rec
-
-
-def _interrupt(exc: BaseException) -> KeyboardInterrupt:
-    """The interrupt ``exc`` stands for (:func:`~beamcontact.stop_signals.as_interrupt`);
-    any other error is raised again."""
-    interrupt = as_interrupt(exc)
-    if interrupt is None:
-        raise exc
-    return interrupt
 
 
 def _rejections(before: np.ndarray, since: dict) -> dict:
@@ -522,7 +513,7 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
                    "compile_time_s": tally.first_step_s or 0.0,
                    "loop_threads": _loop_threads(begin.engine)}
     except (KeyboardInterrupt, SystemError) as exc:
-        summary = {**tally.interrupted("t", _interrupt(exc)), "rejections": tally.rejections(),
+        summary = {**tally.interrupted("t", interrupt_of(exc)), "rejections": tally.rejections(),
                    "t_final": tally.reached}
     except OutputError as exc:
         summary = {**tally.failed_output("t", exc), "rejections": tally.rejections(),

@@ -46,6 +46,15 @@ def as_interrupt(exc: BaseException) -> KeyboardInterrupt | None:
     return exc if isinstance(exc, KeyboardInterrupt) else None
 
 
+def interrupt_of(exc: BaseException) -> KeyboardInterrupt:
+    """The interrupt ``exc`` stands for (:func:`as_interrupt`); any other error is raised
+    again. For the handlers of KeyboardInterrupt and SystemError around a run."""
+    interrupt = as_interrupt(exc)
+    if interrupt is None:
+        raise exc
+    return interrupt
+
+
 def stopped_by(exc: KeyboardInterrupt) -> str:
     """What stopped a run: "the user" (Ctrl-C) or "SIGTERM" and the like."""
     return exc.name if isinstance(exc, Terminated) else "the user"

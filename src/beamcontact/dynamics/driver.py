@@ -94,7 +94,7 @@ from beamcontact.dynamics.report import (
     Attempt,
     Overflow,
 )
-from beamcontact.stop_signals import as_interrupt
+from beamcontact.stop_signals import interrupt_of
 
 if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
     from beamcontact.contact.broadphase import SearchCapacity
@@ -402,10 +402,7 @@ def _host_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emi
             try:
                 attempt = engine.attempt(state, h, float(ctl[MOTION_FACTOR]), capacity)
             except SystemError as exc:  # an interrupt inside a compiled call
-                interrupt = as_interrupt(exc)
-                if interrupt is None:
-                    raise
-                raise interrupt from None
+                raise interrupt_of(exc) from None
             if isinstance(attempt, Overflow):
                 capacity = contact.grown(capacity, attempt.count, attempt.load)
                 continue
