@@ -11,6 +11,7 @@ compiled there and then."""
 import os
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import jax
@@ -371,44 +372,79 @@ def test_the_symbols_of_an_object_file_are_those_its_bitcode_exports():
     assert _native.elf_global_symbols(object_code) == exported
     assert _native.elf_global_symbols(b"\xcf\xfa\xed\xfe" + object_code[4:]) is None
 
-# the helper's model, built in a process whose spline kernels run as Python, into the
-# file argv[1]
-_HELPER_MODEL = '''
-import numpy as np, sys
+# a model (the helper's, or the case file argv[2]) built in a process whose spline
+# kernels run as Python, into the file argv[1]; then the kernels bound again
+_PYTHON_MODEL = '''
+import numpy as np, sys, tomllib
 from beamcontact import _warmup
-_warmup._splines_in_python()
+_warmup.splines_as_python()
 from beamcontact.io.case import parse_case
 from beamcontact.setup.start import prepare
-kernels = [m.__name__ + "." + k for m in list(sys.modules.values())
-           if getattr(m, "__name__", "").startswith("beamcontact.")
-           for k, v in vars(m).items() if hasattr(v, "py_func")
-           and getattr(v, "__module__", "").startswith("beamcontact.spline.")]
+def kernels():
+    return [m.__name__ + "." + k for m in list(sys.modules.values())
+            if getattr(m, "__name__", "").startswith("beamcontact.")
+            for k, v in vars(m).items() if hasattr(v, "py_func")
+            and getattr(v, "__module__", "").startswith("beamcontact.spline.")]
+python = kernels()
 import jax
 from beamcontact import enable_x64
 enable_x64()
-p = prepare(parse_case(_warmup.TINY_CASE))
+case = (_warmup.TINY_CASE if sys.argv[2] == "tiny" else
+        tomllib.loads(open(sys.argv[2]).read()))
+p = prepare(parse_case(case))
 leaves = jax.tree_util.tree_leaves((p.model, p.contact.elements))
-np.savez(sys.argv[1], *[np.asarray(v) for v in leaves], kernels=np.array(kernels, dtype=str))
+_warmup.splines_as_python(False)
+from beamcontact.spline import basis_native, curve, refine
+assert curve.curve_points_into is basis_native.curve_points_into
+assert refine.refine_native.insert_sorted_into.py_func
+np.savez(sys.argv[1], *[np.asarray(v) for v in leaves], python=np.array(python, dtype=str),
+         compiled=np.array(kernels(), dtype=str))
 '''
 
 
-def test_the_helper_builds_its_model_with_python_splines(tmp_path):
-    """The helper (_warmup._splines_in_python) leaves no spline kernel bound to a name in
-    the package, and every array of its model (control points, basis functions at the
-    quadrature and contact points) is that of the compiled kernels, bit for bit."""
-    path = tmp_path / "helper.npz"
+@pytest.mark.parametrize("case", ["tiny", "bundled"])
+def test_a_model_built_with_python_splines_is_the_compiled_one(tmp_path, case):
+    """With the spline kernels as Python (_warmup.splines_as_python: the helper's model,
+    and a small model built while the cache is cold, such as the bundled benchmark's), no
+    spline kernel stays bound to a name in the package, every array of the model
+    (control points, basis functions at the quadrature and contact points) is that of
+    the compiled kernels, bit for bit, and the kernels are bound again afterwards."""
+    from beamcontact import examples
+
+    path = tmp_path / "model.npz"
+    source = "tiny" if case == "tiny" else str(examples.path("free_fall", "case_cg.toml"))
     env = {**os.environ, "BEAMCONTACT_CACHE_DIR": ""}
-    out = subprocess.run([sys.executable, "-c", _HELPER_MODEL, str(path)], env=env,
+    out = subprocess.run([sys.executable, "-c", _PYTHON_MODEL, str(path), source], env=env,
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
-    helper = np.load(path)
-    assert list(helper["kernels"]) == []
-    p = prepare(parse_case(_warmup.TINY_CASE))
+    ours = np.load(path)
+    assert list(ours["python"]) == []
+    assert len(ours["compiled"]) >= 4  # the kernels are bound again, where they were
+    data = (_warmup.TINY_CASE if case == "tiny" else
+            tomllib.loads(Path(source).read_text()))
+    p = prepare(parse_case(data))
     leaves = jax.tree_util.tree_leaves((p.model, p.contact.elements))
-    assert len(leaves) == len(helper.files) - 1
+    assert len(leaves) == len(ours.files) - 2
     for k, leaf in enumerate(leaves):
-        ours, compiled = helper[f"arr_{k}"], np.asarray(leaf)
+        python, compiled = ours[f"arr_{k}"], np.asarray(leaf)
         # the same values, dtype and layout (Numba compiles a kernel again for another)
-        np.testing.assert_array_equal(ours, compiled)
-        assert ours.dtype == compiled.dtype and ours.flags.c_contiguous == \
+        np.testing.assert_array_equal(python, compiled)
+        assert python.dtype == compiled.dtype and python.flags.c_contiguous == \
             compiled.flags.c_contiguous
+
+
+def test_a_cold_run_of_a_small_model_builds_it_with_python_splines(tmp_path, monkeypatch):
+    """While the kernel cache lacks the loop, a model of at most PYTHON_SPLINES_ELEMENTS
+    elements is built with the spline kernels as Python; a larger one, or a warm cache,
+    compiles them (or loads them)."""
+    calls = []
+    monkeypatch.setattr(_warmup, "splines_as_python", lambda python=True: calls.append(python))
+    monkeypatch.setattr(_warmup, "_files", lambda: (tmp_path / "loop.ready",
+                                                    tmp_path / "loop.lock"))
+    limit = _warmup.PYTHON_SPLINES_ELEMENTS
+    assert not _warmup.python_splines_while_cold(limit + 1) and calls == []
+    assert _warmup.python_splines_while_cold(limit) and calls == [True]
+    (tmp_path / "loop.ready").touch()
+    assert not _warmup.python_splines_while_cold(1) and calls == [True]
+    monkeypatch.setattr(_warmup, "_files", lambda: None)  # no cache, or in the helper
+    assert not _warmup.python_splines_while_cold(1) and calls == [True]

@@ -9,8 +9,10 @@ the same for every model, so a helper process compiles it on a tiny model of its
 into the shared cache, while the run compiles its start on the other core; the run then
 waits for the helper and loads the loop from the cache. The run starts the helper before
 it builds its model (:func:`beamcontact.setup.start.compile_loop_early`), and the helper
-evaluates the splines of its model as Python (:func:`_splines_in_python`), so that it
-does not wait for the spline kernels. The two share kernels: the
+evaluates the splines of its model as Python (:func:`splines_as_python`), so that it
+does not wait for the spline kernels; so does the run of a small model
+(:func:`python_splines_while_cold`), and the helper compiles them once it has stored the
+loop. The two share kernels: the
 helper compiles the loop's kernels one by one first (:func:`_kernel_calls`), in an order
 that goes ahead of the start, and the run, its start done, compiles the helper's last
 ones (:func:`help_while_waiting`), so that each loads from the cache what the other has
@@ -173,13 +175,16 @@ def wait() -> None:
         return
     ready, lock = files
     if _helper is not None:
-        try:
-            _helper.wait(timeout=GIVE_UP_S)
-        except subprocess.TimeoutExpired:
+        # the loop is ready before the helper ends: it compiles the spline kernels then
+        deadline = time.monotonic() + GIVE_UP_S
+        while _helper.poll() is None and not ready.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        if _helper.poll() is None and not ready.exists():
             _helper.kill()
             _helper.wait()
+        if _helper.poll() is not None:
+            lock.unlink(missing_ok=True)
         _helper = None
-        lock.unlink(missing_ok=True)
         return
     deadline = time.monotonic() + GIVE_UP_S
     while _helper_works(lock) and not ready.exists() and time.monotonic() < deadline:
@@ -198,29 +203,79 @@ TINY_CASE = {
     "contact": {"model": "cg", "segments_per_element": 2}}
 
 
-def _splines_in_python() -> None:
-    """In the helper: the spline kernels as the Python functions they are compiled from.
-    The tiny model needs them for a handful of points, the loop calls none of them, and
-    the run compiles them at its start beside the helper; so the helper starts on the
-    loop's kernels at once instead of after the spline kernels (about 5 s, session 22).
-    Called before any module binds their names."""
+# a model of at most this many elements (all beams together) builds its splines as
+# Python while a helper fills an empty cache (:func:`splines_as_python`): about 15 ms an
+# element as Python (0.41 s for the bundled benchmark's 26, 0.19 s for the peer drop's
+# 26 with fewer contact segments) against 3.8 s to compile the spline kernels, which
+# were the first 3.8 s of a cold run's way to its steps (session 29)
+PYTHON_SPLINES_ELEMENTS = 100
+
+# the spline kernels by the id of the Python function each is compiled from
+_SPLINE_KERNELS: dict[int, object] = {}
+
+
+def splines_as_python(python: bool = True) -> None:
+    """The spline kernels as the Python functions they are compiled from (``python``),
+    or as the kernels again, in every module of the package that binds their names.
+
+    Building a small model needs them for a few thousand points and the time loop calls
+    none of them, so while the kernel cache is empty the helper (which would otherwise
+    compile them before the loop's kernels) and a run of a small model
+    (:func:`python_splines_while_cold`) evaluate them as Python, the same numbers bit
+    for bit (tests/test_native_compile.py), and the helper compiles them for the next
+    run once the loop is in the cache (:func:`_compile_splines`)."""
     from beamcontact.spline import basis_native, refine_native
 
-    kernels = {id(value): value.py_func for module in (basis_native, refine_native)
-               for value in vars(module).values()
-               if getattr(value, "__module__", None) == module.__name__
-               and hasattr(value, "py_func")}
+    if not _SPLINE_KERNELS:
+        _SPLINE_KERNELS.update(
+            (id(value.py_func), value) for module in (basis_native, refine_native)
+            for value in vars(module).values()
+            if getattr(value, "__module__", None) == module.__name__
+            and hasattr(value, "py_func"))
+    if python:
+        swap = {id(kernel): kernel.py_func for kernel in _SPLINE_KERNELS.values()}
+    else:
+        swap = {id(kernel.py_func): kernel for kernel in _SPLINE_KERNELS.values()}
     for name, module in list(sys.modules.items()):  # the kernels and every name bound to one
         if name.startswith("beamcontact."):
             for attr, value in list(vars(module).items()):
-                if id(value) in kernels:
-                    setattr(module, attr, kernels[id(value)])
+                if id(value) in swap:
+                    setattr(module, attr, swap[id(value)])
+
+
+def python_splines_while_cold(elements: int) -> bool:
+    """In a run, before its model is built: the spline kernels as Python
+    (:func:`splines_as_python`) if the kernel cache lacks the compiled loop (a helper
+    fills it, or is about to) and the model has at most PYTHON_SPLINES_ELEMENTS
+    ``elements``. Returns whether it switched them."""
+    files = _files()
+    if files is None or files[0].exists() or elements > PYTHON_SPLINES_ELEMENTS:
+        return False
+    splines_as_python()
+    return True
+
+
+# the helper's model with two elements a beam: its build calls every spline kernel that
+# a run's model build does (knot insertion included), with the same argument types
+_SPLINE_CASE = {**TINY_CASE, "beams": [{**beam, "elements": 2}
+                                       for beam in TINY_CASE["beams"]]}
+
+
+def _compile_splines() -> None:
+    """In the helper, the loop compiled and marked ready: the spline kernels into the
+    cache, by building a model with them (the run that started the helper built its own
+    with them as Python, :func:`python_splines_while_cold`)."""
+    from beamcontact.io.case import parse_case
+    from beamcontact.setup.start import prepare
+
+    splines_as_python(False)
+    prepare(parse_case(_SPLINE_CASE))
 
 
 def _compile_loop() -> None:
     """The helper: one step of a tiny model with coarse-grained contact, which compiles
     the loop (and the kernels it calls) into the cache."""
-    _splines_in_python()
+    splines_as_python()
     import numpy as np
 
     from beamcontact import enable_x64
@@ -332,6 +387,7 @@ if __name__ == "__main__":
         loop_ready()
         if paths is not None:
             _errors(paths[1]).unlink(missing_ok=True)
+        _compile_splines()  # for the next run; this one needs the loop only
     finally:
         if paths is not None:
             _steps_mark(paths[0]).unlink(missing_ok=True)

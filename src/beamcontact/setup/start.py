@@ -118,9 +118,10 @@ def compile_loop_early(case: Case) -> None:
     spline kernels that build the model included (runner.py calls it for every dynamic
     run; :func:`dynamic_start` alone compiles the loop at its first call). A case that
     the native engine cannot run with its case file's laws starts nothing (its error
-    comes with the start of the run). A run that stops on an error in its model leaves
-    the helper to finish filling the cache (under a minute), which the next run then
-    finds."""
+    comes with the start of the run). While the cache lacks the loop, a small model is
+    built with the spline kernels as Python (``_warmup.python_splines_while_cold``).
+    A run that stops on an error in its model leaves the helper to finish filling the
+    cache (under a minute), which the next run then finds."""
     try:
         native = choose_engine(case)[0] == "native"
     except CaseError:
@@ -129,6 +130,7 @@ def compile_loop_early(case: Case) -> None:
         from beamcontact import _warmup
 
         _warmup.start_if_cold()
+        _warmup.python_splines_while_cold(sum(beam.elements for beam in case.beams))
 
 
 def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
