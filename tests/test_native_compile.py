@@ -448,3 +448,55 @@ def test_a_cold_run_of_a_small_model_builds_it_with_python_splines(tmp_path, mon
     assert not _warmup.python_splines_while_cold(1) and calls == [True]
     monkeypatch.setattr(_warmup, "_files", lambda: None)  # no cache, or in the helper
     assert not _warmup.python_splines_while_cold(1) and calls == [True]
+
+
+_HELD_HELPER = '''
+from beamcontact import _warmup
+_warmup._held_until_released()
+print("on", flush=True)
+'''
+
+
+@pytest.mark.parametrize("how", ["released", "run ended"])
+def test_a_held_helper_goes_on_when_released_or_when_its_run_ends(how):
+    """The helper waits, once it has stored the attempt, for its run to let it go on (a
+    byte on its input) or to end (the end of its input, also when the run is killed)."""
+    env = {**os.environ, _warmup._HELD: "1"}
+    helper = subprocess.Popen([sys.executable, "-c", _HELD_HELPER], env=env,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    try:
+        with pytest.raises(subprocess.TimeoutExpired):
+            helper.wait(timeout=3.0)  # held (the import takes well under that)
+        if how == "released":
+            helper.stdin.write(b"r")
+            helper.stdin.flush()
+        else:
+            helper.stdin.close()
+        assert helper.wait(timeout=60) == 0
+        assert helper.stdout.read() == b"on\n"
+    finally:
+        helper.kill()
+        helper.wait()
+
+
+def test_a_run_releases_its_helper_when_its_remaining_steps_look_long(monkeypatch):
+    """A run holds its helper while its steps made meanwhile leave at most
+    RELEASE_AFTER_S to go at their rate, judged after RELEASE_LOOK_S of them, and lets
+    it go on (once) when they leave more."""
+    helper = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.buffer.read(1)"],
+                              stdin=subprocess.PIPE)
+    monkeypatch.setattr(_warmup, "_helper", helper)
+    try:
+        look, after = _warmup.RELEASE_LOOK_S, _warmup.RELEASE_AFTER_S
+        _warmup.release_if_long(0.5 * look, 1e-6)  # too early to judge
+        # 2 look seconds for a tenth of the run: 18 look seconds to go
+        _warmup.release_if_long(2 * look, 0.1 if 18 * look <= after else 0.99)
+        assert _warmup.holding() and helper.poll() is None
+        _warmup.release_if_long(2 * look, 2 * look / (2 * look + 1.01 * after))
+        assert not _warmup.holding()
+        assert helper.wait(timeout=60) == 0
+        _warmup.release_if_long(2 * look, 1e-6)  # released once; nothing more to do
+        _warmup.release()
+    finally:
+        helper.kill()
+        helper.wait()

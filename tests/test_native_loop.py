@@ -96,7 +96,8 @@ class LoopLater(HostLooped):
         super().__init__(engine)
         self.attempts, self.looks = attempts, 0
 
-    def loop_compiling(self, state) -> bool:
+    def loop_compiling(self, state, done: float = 0.0) -> bool:
+        assert 0.0 <= done < 1.0
         self.looks += 1
         return self.looks <= self.attempts
 

@@ -19,7 +19,9 @@ ones (:func:`help_while_waiting`), so that each loads from the cache what the ot
 compiled. Once the helper has stored the attempt, a run makes its steps without the
 loop until the loop is ready (:func:`steps_meanwhile`; dynamics/driver.py,
 ``_compiled_loop``), so a short run may end before its helper, which then finishes in
-the background. One helper per cache: the first run that finds the cache without the
+the background. The run that started the helper holds it there, once it has stored the
+attempt, so that the steps have both cores, until the run ends or its remaining steps
+look long enough for the loop to pay (:func:`release_if_long`). One helper per cache: the first run that finds the cache without the
 loop takes a lock file and starts it, the others wait for it too.
 
 Files in the kernel cache folder (``_native._CACHE_DIR``), per install:
@@ -46,6 +48,18 @@ GIVE_UP_S = 900.0
 _helper: subprocess.Popen | None = None
 # set in the helper's environment: it neither starts nor waits for a helper
 _IN_HELPER = "BEAMCONTACT_WARMUP_HELPER"
+# set there too: once it has stored the attempt, it waits for a byte or the end of its
+# input (the run that started it lets it go on, or has ended) before the loop itself
+_HELD = "BEAMCONTACT_WARMUP_HELD"
+
+# a run lets its held helper go on once its remaining steps look longer than this [s]
+# (:func:`release_if_long`): the helper's last 10-13 s of compile (the loop, the spline
+# kernels) slowed the steps made beside it by about a third (the bundled benchmark's
+# 9.5 s of steps against about 6.5 s alone on both cores), and the compiled loop makes
+# them about a fifth faster than the steps made from Python (session 29)
+RELEASE_AFTER_S = 20.0
+# ... judged after at least this many seconds of steps (the first steps' rate says little)
+RELEASE_LOOK_S = 1.0
 
 
 def _names() -> tuple[str, str]:
@@ -151,9 +165,9 @@ def start_if_cold() -> None:
     try:
         with open(_errors(lock), "wb") as errors:
             _helper = subprocess.Popen([sys.executable, "-m", "beamcontact._warmup"],
-                                       stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                       stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                        stderr=errors,
-                                       env={**os.environ, _IN_HELPER: "1",
+                                       env={**os.environ, _IN_HELPER: "1", _HELD: "1",
                                             # this process's cache, whatever the
                                             # environment says now
                                             "BEAMCONTACT_CACHE_DIR":
@@ -166,6 +180,41 @@ def start_if_cold() -> None:
         os.close(fd)
 
 
+def holding() -> bool:
+    """Whether this run holds the helper it started (:func:`release`)."""
+    return _helper is not None and _helper.stdin is not None and not _helper.stdin.closed
+
+
+def release() -> None:
+    """Let the helper this run started go on from the attempt to the loop itself. Until
+    then (or the run's end, which closes the helper's input) it waits, so that the
+    run's steps meanwhile have every core."""
+    if holding():
+        with contextlib.suppress(OSError, ValueError):
+            _helper.stdin.write(b"r")
+        with contextlib.suppress(OSError, ValueError):
+            _helper.stdin.close()
+
+
+def release_if_long(elapsed: float, done: float) -> None:
+    """:func:`release` once the run's steps made meanwhile, ``elapsed`` seconds for the
+    fraction ``done`` of its time, leave more than RELEASE_AFTER_S to go at that rate:
+    then the loop is worth its compile (a long run), else the helper compiles it after
+    the run (a short one, such as the bundled benchmark). Judged after RELEASE_LOOK_S
+    of steps."""
+    if (holding() and elapsed >= RELEASE_LOOK_S
+            and elapsed * (1.0 - done) > RELEASE_AFTER_S * done):
+        release()
+
+
+def _held_until_released() -> None:
+    """In a helper that has stored the attempt: wait for the run that started it to
+    let it go on (a byte on its input) or to end (the input's end)."""
+    if os.environ.get(_HELD):
+        with contextlib.suppress(OSError):
+            sys.stdin.buffer.read(1)
+
+
 def wait() -> None:
     """Before the loop's first call: wait for a helper compiling it (this process's, or
     another run's), at most GIVE_UP_S."""
@@ -174,6 +223,7 @@ def wait() -> None:
     if files is None:
         return
     ready, lock = files
+    release()
     if _helper is not None:
         # the loop is ready before the helper ends: it compiles the spline kernels then
         deadline = time.monotonic() + GIVE_UP_S
@@ -303,6 +353,7 @@ def _compile_loop() -> None:
     paths = _paths()
     if paths is not None:  # a run may step without the loop from now on
         _steps_mark(paths[0]).touch()
+    _held_until_released()
     for call in calls[-RUN_HELPS:]:
         call()
     engine.advance(state, new_state(0.0, 1e-3, account), limits, lambda *_: None)

@@ -177,6 +177,10 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
                     "status": "output_failed", "message": f"{exc}; the run did not start",
                     "steps": 0, "title": case.title, "kind": case.analysis.kind})
         raise
+    finally:
+        # a helper this run held compiles the loop from now on (a process that makes
+        # more runs, the Python API's, needs it; the command line's ends here anyway)
+        _warmup.release()
     if (contact is not None and isinstance(contact.law, CoarseGrained)
             and summary.get("min_gap") is not None):
         res = contact_resolution(contact.elements, contact.law, summary["min_gap"])

@@ -121,8 +121,9 @@ class Engine(Protocol):
     its first attempt)``: it makes the attempts, asks :func:`~beamcontact.dynamics.
     control.decide` about each, and emits every accepted step (:data:`Emit`), from
     ``state`` and the controller's state ``ctl`` until t_end or a stop; and it may have
-    ``loop_compiling(state) -> bool``: True while that loop is not ready but ``attempt`` is,
-    so that the driver's host loop makes the steps meanwhile (:func:`_compiled_loop`).
+    ``loop_compiling(state, done=0.0) -> bool``: True while that loop is not ready but
+    ``attempt`` is, so that the driver's host loop makes the steps meanwhile
+    (:func:`_compiled_loop`; ``done`` is the fraction of the run's time made).
     """
 
     name: str
@@ -353,9 +354,13 @@ def _compiled_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit:
     compiling = getattr(engine, "loop_compiling", None)
     stopped, first_s = None, 0.0
     if compiling is not None and compiling(state):
-        start = state
+        start, t0 = state, float(ctl[T])
+
+        def meanwhile() -> bool:
+            return compiling(start, (ctl[T] - t0) / max(limits.t_end - t0, 1e-300))
+
         state, stopped, host_s = _host_loop(engine, state, ctl, limits, emit, capacity,
-                                            meanwhile=lambda: compiling(start))
+                                            meanwhile=meanwhile)
         first_s += host_s or 0.0
     if stopped is None and unfinished(ctl[T], limits):
         state, stopped, loop_s = engine.advance(state, ctl, limits, emit)

@@ -581,8 +581,11 @@ class NativeEngine:
         # latest states, so that a step under an unchanged set does not evaluate the
         # energy of its start again (the same sum at the same state)
         self._energies: list[tuple] = []
-        # (when, result) of the last look of loop_compiling
+        # (when, result) of the last look of loop_compiling, when its steps began, and
+        # the thread count it set (0: none yet)
         self._looked: tuple[float, bool] | None = None
+        self._meanwhile_since: float | None = None
+        self._meanwhile_threads = 0
         # seconds of the compiled loop per thread count (_native.CoreShare), for the summary
         self.thread_seconds: dict[int, float] = {}
         _native.set_threads(None)  # after another run that ended on one thread meanwhile
@@ -599,14 +602,16 @@ class NativeEngine:
     def _remember(self, u: np.ndarray, frozen: tuple, energy: float) -> None:
         self._energies = [(u, frozen[2], frozen[3], energy)] + self._energies[:3]
 
-    def loop_compiling(self, state: DynState) -> bool:
+    def loop_compiling(self, state: DynState, done: float = 0.0) -> bool:
         """Whether a helper is compiling the time loop into an empty cache and has
         stored the attempt (beamcontact/_warmup.py): then the driver's host loop makes
         the steps with :meth:`attempt` meanwhile (dynamics/driver.py), and :meth:`advance`
         goes on from there once the loop is ready. The first call helps the helper (the
         contact set at the predictor and the checks after a step, which :meth:`attempt`
         calls too) and waits until the helper has stored the attempt or the loop; later
-        calls look again at most every LOOK_SECONDS."""
+        calls look again at most every LOOK_SECONDS. ``done``: the fraction of the run's
+        time made, from which the helper this run holds is let go on
+        (:func:`~beamcontact._warmup.release_if_long`)."""
         from beamcontact import _warmup
 
         now = time.perf_counter()
@@ -618,11 +623,17 @@ class NativeEngine:
         compiling = _warmup.steps_meanwhile()
         if compiling:
             _native.load_partial_for_python()  # the helper's attempt, as it is
-        if self._looked is None or compiling != self._looked[1]:
-            # one core for the helper meanwhile: with a thread of the kernels on each,
-            # the helper compiled 30 % longer and the steps ran slower (the next engine
-            # made in this process starts on all its threads again)
-            _native.set_threads(1 if compiling else None)
+            if self._meanwhile_since is None:  # after the wait for the helper's attempt
+                self._meanwhile_since = time.perf_counter()
+            _warmup.release_if_long(now - self._meanwhile_since, done)
+        # one core for a helper that compiles meanwhile: with a thread of the kernels on
+        # each, the helper compiled 30 % longer and the steps ran slower; every core
+        # while it is held or done (the next engine made in this process starts on all
+        # its threads again)
+        threads = 1 if compiling and not _warmup.holding() else _native.most_threads()
+        if threads != self._meanwhile_threads:
+            _native.set_threads(threads)
+            self._meanwhile_threads = threads
         self._looked = (now, compiling)
         return compiling
 
