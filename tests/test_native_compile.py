@@ -18,7 +18,7 @@ import jax
 import numpy as np
 import pytest
 
-from beamcontact import _warmup
+from beamcontact import _native, _warmup
 from beamcontact.io.case import parse_case
 from beamcontact.setup.start import prepare
 
@@ -372,82 +372,72 @@ def test_the_symbols_of_an_object_file_are_those_its_bitcode_exports():
     assert _native.elf_global_symbols(object_code) == exported
     assert _native.elf_global_symbols(b"\xcf\xfa\xed\xfe" + object_code[4:]) is None
 
-# a model (the helper's, or the case file argv[2]) built in a process whose spline
-# kernels run as Python, into the file argv[1]; then the kernels bound again
-_PYTHON_MODEL = '''
-import numpy as np, sys, tomllib
-from beamcontact import _warmup
-_warmup.splines_as_python()
-from beamcontact.io.case import parse_case
-from beamcontact.setup.start import prepare
-def kernels():
-    return [m.__name__ + "." + k for m in list(sys.modules.values())
-            if getattr(m, "__name__", "").startswith("beamcontact.")
-            for k, v in vars(m).items() if hasattr(v, "py_func")
-            and getattr(v, "__module__", "").startswith("beamcontact.spline.")]
-python = kernels()
-import jax
-from beamcontact import enable_x64
-enable_x64()
-case = (_warmup.TINY_CASE if sys.argv[2] == "tiny" else
-        tomllib.loads(open(sys.argv[2]).read()))
-p = prepare(parse_case(case))
-leaves = jax.tree_util.tree_leaves((p.model, p.contact.elements))
-_warmup.splines_as_python(False)
-from beamcontact.spline import basis_native, curve, refine
-assert curve.curve_points_into is basis_native.curve_points_into
-assert refine.refine_native.insert_sorted_into.py_func
-np.savez(sys.argv[1], *[np.asarray(v) for v in leaves], python=np.array(python, dtype=str),
-         compiled=np.array(kernels(), dtype=str))
-'''
+def _start(data: dict) -> tuple[list, dict]:
+    """The arrays of a dynamic case's model and of its state at t = 0 (the contact set
+    there, the initial acceleration), and its first energies."""
+    from beamcontact.setup.start import dynamic_start
+
+    p = prepare(parse_case(data))
+    begin = dynamic_start(p)
+    state = begin.state
+    leaves = jax.tree_util.tree_leaves((p.model, p.contact.elements)) + [
+        state.u, state.v, state.a, state.f_pot, state.load_state.theta,
+        state.load_state.tangent]
+    return leaves, begin.engine.energies(state, None)
 
 
-@pytest.mark.parametrize("case", ["tiny", "bundled"])
-def test_a_model_built_with_python_splines_is_the_compiled_one(tmp_path, case):
-    """With the spline kernels as Python (_warmup.splines_as_python: the helper's model,
-    and a small model built while the cache is cold, such as the bundled benchmark's), no
-    spline kernel stays bound to a name in the package, every array of the model
-    (control points, basis functions at the quadrature and contact points) is that of
-    the compiled kernels, bit for bit, and the kernels are bound again afterwards."""
+def _kernels_bound_to_python() -> list[str]:
+    """The names in the package's modules bound to a kernel's Python function."""
+    return [f"{name}.{attr}" for name, module in list(sys.modules.items())
+            if name.startswith("beamcontact.")
+            for attr, value in vars(module).items() if id(value) in _native._KERNELS
+            and _native._KERNELS[id(value)].py_func is value]
+
+
+@pytest.mark.parametrize("case", ["tiny", "case_cg.toml", "case_ipip.toml"])
+def test_a_start_made_with_the_kernels_as_python_is_the_compiled_one(case):
+    """The start of a run with the kernels as Python (_native.as_python: the helper's
+    model, and the start of a small run while the cache lacks the loop): every array of
+    the model (control points, basis functions at the quadrature and contact points) and
+    of the state at t = 0 (its contact set, the initial acceleration) and the first
+    energies are those of the compiled kernels, bit for bit (the helper's tiny model
+    starts in contact, the bundled drops in free flight), and the kernels are bound
+    again after the block."""
     from beamcontact import examples
 
-    path = tmp_path / "model.npz"
-    source = "tiny" if case == "tiny" else str(examples.path("free_fall", "case_cg.toml"))
-    env = {**os.environ, "BEAMCONTACT_CACHE_DIR": ""}
-    out = subprocess.run([sys.executable, "-c", _PYTHON_MODEL, str(path), source], env=env,
-                         capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr
-    ours = np.load(path)
-    assert list(ours["python"]) == []
-    assert len(ours["compiled"]) >= 4  # the kernels are bound again, where they were
     data = (_warmup.TINY_CASE if case == "tiny" else
-            tomllib.loads(Path(source).read_text()))
-    p = prepare(parse_case(data))
-    leaves = jax.tree_util.tree_leaves((p.model, p.contact.elements))
-    assert len(leaves) == len(ours.files) - 2
-    for k, leaf in enumerate(leaves):
-        python, compiled = ours[f"arr_{k}"], np.asarray(leaf)
+            tomllib.loads(examples.path("free_fall", case).read_text()))
+    with _native.as_python():
+        python, python_energies = _start(data)
+        assert len(_kernels_bound_to_python()) > 100
+    assert _kernels_bound_to_python() == []
+    compiled, energies = _start(data)
+    assert python_energies == energies
+    if case == "tiny":
+        assert energies["E_contact"] > 0.0  # contact at t = 0
+    assert len(python) == len(compiled)
+    for ours, kernels in zip(python, compiled, strict=True):
+        ours, kernels = np.asarray(ours), np.asarray(kernels)
         # the same values, dtype and layout (Numba compiles a kernel again for another)
-        np.testing.assert_array_equal(python, compiled)
-        assert python.dtype == compiled.dtype and python.flags.c_contiguous == \
-            compiled.flags.c_contiguous
+        np.testing.assert_array_equal(ours, kernels)
+        assert ours.dtype == kernels.dtype and ours.flags.c_contiguous == \
+            kernels.flags.c_contiguous
 
 
-def test_a_cold_run_of_a_small_model_builds_it_with_python_splines(tmp_path, monkeypatch):
-    """While the kernel cache lacks the loop, a model of at most PYTHON_SPLINES_ELEMENTS
-    elements is built with the spline kernels as Python; a larger one, or a warm cache,
-    compiles them (or loads them)."""
-    calls = []
-    monkeypatch.setattr(_warmup, "splines_as_python", lambda python=True: calls.append(python))
+def test_a_cold_run_of_a_small_model_makes_its_start_as_python(tmp_path, monkeypatch):
+    """While the kernel cache lacks the loop, a run of a model of at most
+    START_AS_PYTHON_ELEMENTS elements makes its start with the kernels as Python; a
+    larger one, or one with the loop cached or without a cache, compiles them (or loads
+    them)."""
     monkeypatch.setattr(_warmup, "_files", lambda: (tmp_path / "loop.ready",
                                                     tmp_path / "loop.lock"))
-    limit = _warmup.PYTHON_SPLINES_ELEMENTS
-    assert not _warmup.python_splines_while_cold(limit + 1) and calls == []
-    assert _warmup.python_splines_while_cold(limit) and calls == [True]
+    limit = _warmup.START_AS_PYTHON_ELEMENTS
+    assert not _warmup.start_as_python(limit + 1)
+    assert _warmup.start_as_python(limit)
     (tmp_path / "loop.ready").touch()
-    assert not _warmup.python_splines_while_cold(1) and calls == [True]
+    assert not _warmup.start_as_python(1)
     monkeypatch.setattr(_warmup, "_files", lambda: None)  # no cache, or in the helper
-    assert not _warmup.python_splines_while_cold(1) and calls == [True]
+    assert not _warmup.start_as_python(1)
 
 
 _HELD_HELPER = '''

@@ -19,13 +19,16 @@ Importing this module imports neither JAX nor matplotlib.
 
 import contextlib
 import hashlib
+import importlib
 import os
 import shutil
 import struct
+import sys
 import time
 from pathlib import Path
 
 import numba
+import numba.core.dispatcher
 import numba.core.event
 import numba.extending
 
@@ -651,6 +654,65 @@ def njit_uncounted(func):
     would never be freed, so such a kernel calls only kernels that return numbers. The
     arithmetic is the same, bit for bit."""
     return _compiled(func, _nrt=False)
+
+
+# the package's kernels by the id of the Python function each is compiled from, and the
+# depth of the as_python blocks entered
+_KERNELS: dict[int, numba.core.dispatcher.Dispatcher] = {}
+_as_python_depth = 0
+
+
+def _kernels_as_python(python: bool) -> None:
+    """Every name in the package's modules that is bound to one of its kernels bound to
+    the kernel's Python function (``python``), or back. The kernels' modules are
+    imported first: one imported later would bind the Python functions of the kernels it
+    imports, and its own kernels would compile with them (and fail)."""
+    if python:
+        package = Path(__file__).parent
+        for path in sorted(package.rglob("*native*.py")):
+            parts = path.relative_to(package).with_suffix("").parts
+            importlib.import_module(".".join((__package__, *parts)))
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("beamcontact."):
+            continue
+        for attr, value in list(vars(module).items()):
+            if python:
+                if (isinstance(value, numba.core.dispatcher.Dispatcher)
+                        and value.py_func.__module__.startswith("beamcontact.")):
+                    _KERNELS[id(value.py_func)] = value
+                    setattr(module, attr, value.py_func)
+            elif id(value) in _KERNELS and _KERNELS[id(value)].py_func is value:
+                setattr(module, attr, _KERNELS[id(value)])
+
+
+@contextlib.contextmanager
+def as_python(active: bool = True):
+    """Within the block (if ``active``), the package's kernels run as the Python
+    functions they are compiled from: every name in its modules bound to a kernel is
+    bound to the kernel's Python function, also in a module imported within the block,
+    and bound back after it.
+
+    For the start of a small run while the kernel cache is empty
+    (beamcontact/_warmup.py, :func:`~beamcontact._warmup.start_as_python`): the
+    splines of its model, its contact set at t = 0, its initial acceleration and first
+    energies, called once, take 0.35-0.75 s as Python for the bundled benchmark, against
+    about 20 s of compile on its way to the steps (session 29). The numbers are those
+    of the kernels bit for bit (no fast-math; tests/test_native_compile.py). Names bound
+    in other ways (a kernel in a tuple) call the kernel, which is slower to start but
+    the same. Not for threads that call kernels meanwhile."""
+    global _as_python_depth
+    if not active:
+        yield
+        return
+    _as_python_depth += 1
+    if _as_python_depth == 1:
+        _kernels_as_python(True)
+    try:
+        yield
+    finally:
+        _as_python_depth -= 1
+        if _as_python_depth == 0:
+            _kernels_as_python(False)
 
 
 def njit_inline(func):

@@ -9,20 +9,21 @@ the same for every model, so a helper process compiles it on a tiny model of its
 into the shared cache, while the run compiles its start on the other core; the run then
 waits for the helper and loads the loop from the cache. The run starts the helper before
 it builds its model (:func:`beamcontact.setup.start.compile_loop_early`), and the helper
-evaluates the splines of its model as Python (:func:`splines_as_python`), so that it
-does not wait for the spline kernels; so does the run of a small model
-(:func:`python_splines_while_cold`), and the helper compiles them once it has stored the
-loop. The two share kernels: the
+builds its model with the kernels as Python (:func:`beamcontact._native.as_python`), so
+that it does not wait for the spline kernels; a run of a small model makes its whole
+start so (:func:`start_as_python`), and the helper compiles the spline kernels once it
+has stored the loop. The two share kernels: the
 helper compiles the loop's kernels one by one first (:func:`_kernel_calls`), in an order
-that goes ahead of the start, and the run, its start done, compiles the helper's last
-ones (:func:`help_while_waiting`), so that each loads from the cache what the other has
+that goes ahead of the start, and the run, its start done, compiles some of them
+(:func:`help_while_waiting`), so that each loads from the cache what the other has
 compiled. Once the helper has stored the attempt, a run makes its steps without the
 loop until the loop is ready (:func:`steps_meanwhile`; dynamics/driver.py,
 ``_compiled_loop``), so a short run may end before its helper, which then finishes in
 the background. The run that started the helper holds it there, once it has stored the
 attempt, so that the steps have both cores, until the run ends or its remaining steps
-look long enough for the loop to pay (:func:`release_if_long`). One helper per cache: the first run that finds the cache without the
-loop takes a lock file and starts it, the others wait for it too.
+look long enough for the loop to pay (:func:`release_if_long`). One helper per cache:
+the first run that finds the cache without the loop takes a lock file and starts it,
+the others wait for it too.
 
 Files in the kernel cache folder (``_native._CACHE_DIR``), per install:
 ``loop-<key>.ready`` once the loop is in the cache, ``loop-<key>.lock`` (the helper's
@@ -95,7 +96,7 @@ def _files() -> tuple[Path, Path] | None:
 
 def _steps_mark(ready: Path) -> Path:
     """``loop-<key>.steps`` beside the ready mark: the helper has stored the kernels of
-    an attempt (all of :func:`_kernel_calls` but the run's share), so that a run can
+    an attempt (HELPER_ORDER of :func:`_kernel_calls`), so that a run can
     make its steps without the loop until the loop is ready."""
     return ready.with_suffix(".steps")
 
@@ -253,56 +254,24 @@ TINY_CASE = {
     "contact": {"model": "cg", "segments_per_element": 2}}
 
 
-# a model of at most this many elements (all beams together) builds its splines as
-# Python while a helper fills an empty cache (:func:`splines_as_python`): about 15 ms an
-# element as Python (0.41 s for the bundled benchmark's 26, 0.19 s for the peer drop's
-# 26 with fewer contact segments) against 3.8 s to compile the spline kernels, which
-# were the first 3.8 s of a cold run's way to its steps (session 29)
-PYTHON_SPLINES_ELEMENTS = 100
-
-# the spline kernels by the id of the Python function each is compiled from
-_SPLINE_KERNELS: dict[int, object] = {}
+# a run of a model of at most this many elements (all beams together) makes its start
+# with the kernels as Python while a helper fills an empty cache (:func:`start_as_python`)
+START_AS_PYTHON_ELEMENTS = 100
 
 
-def splines_as_python(python: bool = True) -> None:
-    """The spline kernels as the Python functions they are compiled from (``python``),
-    or as the kernels again, in every module of the package that binds their names.
-
-    Building a small model needs them for a few thousand points and the time loop calls
-    none of them, so while the kernel cache is empty the helper (which would otherwise
-    compile them before the loop's kernels) and a run of a small model
-    (:func:`python_splines_while_cold`) evaluate them as Python, the same numbers bit
-    for bit (tests/test_native_compile.py), and the helper compiles them for the next
-    run once the loop is in the cache (:func:`_compile_splines`)."""
-    from beamcontact.spline import basis_native, refine_native
-
-    if not _SPLINE_KERNELS:
-        _SPLINE_KERNELS.update(
-            (id(value.py_func), value) for module in (basis_native, refine_native)
-            for value in vars(module).values()
-            if getattr(value, "__module__", None) == module.__name__
-            and hasattr(value, "py_func"))
-    if python:
-        swap = {id(kernel): kernel.py_func for kernel in _SPLINE_KERNELS.values()}
-    else:
-        swap = {id(kernel.py_func): kernel for kernel in _SPLINE_KERNELS.values()}
-    for name, module in list(sys.modules.items()):  # the kernels and every name bound to one
-        if name.startswith("beamcontact."):
-            for attr, value in list(vars(module).items()):
-                if id(value) in swap:
-                    setattr(module, attr, swap[id(value)])
-
-
-def python_splines_while_cold(elements: int) -> bool:
-    """In a run, before its model is built: the spline kernels as Python
-    (:func:`splines_as_python`) if the kernel cache lacks the compiled loop (a helper
-    fills it, or is about to) and the model has at most PYTHON_SPLINES_ELEMENTS
-    ``elements``. Returns whether it switched them."""
+def start_as_python(elements: int) -> bool:
+    """Whether a run, about to build its model of ``elements`` elements, makes its start
+    (the model's splines, the contact set at t = 0, the initial acceleration, the first
+    energies) with the kernels as Python (:func:`beamcontact._native.as_python`): while
+    the kernel cache lacks the compiled loop (a helper fills it, or is about to), if the
+    model has at most START_AS_PYTHON_ELEMENTS elements. The bundled benchmark's 26
+    take 0.4 s for the splines and 0.35 s for the rest as Python; compiled, they were
+    the first 3.8 s and about 20 s more of a cold run's way to its steps (session 29).
+    The kernels that the steps call many times compile as before, and the helper
+    compiles the spline kernels for the next run (:func:`_compile_splines`)."""
     files = _files()
-    if files is None or files[0].exists() or elements > PYTHON_SPLINES_ELEMENTS:
-        return False
-    splines_as_python()
-    return True
+    return files is not None and not files[0].exists() and \
+        elements <= START_AS_PYTHON_ELEMENTS
 
 
 # the helper's model with two elements a beam: its build calls every spline kernel that
@@ -313,19 +282,18 @@ _SPLINE_CASE = {**TINY_CASE, "beams": [{**beam, "elements": 2}
 
 def _compile_splines() -> None:
     """In the helper, the loop compiled and marked ready: the spline kernels into the
-    cache, by building a model with them (the run that started the helper built its own
-    with them as Python, :func:`python_splines_while_cold`)."""
+    cache, by building a model with them (the helper built its own model with the
+    kernels as Python, and so did a small run that started it, :func:`start_as_python`).
+    """
     from beamcontact.io.case import parse_case
     from beamcontact.setup.start import prepare
 
-    splines_as_python(False)
     prepare(parse_case(_SPLINE_CASE))
 
 
 def _compile_loop() -> None:
     """The helper: one step of a tiny model with coarse-grained contact, which compiles
     the loop (and the kernels it calls) into the cache."""
-    splines_as_python()
     import numpy as np
 
     from beamcontact import enable_x64
@@ -338,7 +306,11 @@ def _compile_loop() -> None:
     from beamcontact.setup.start import prepare
 
     enable_x64()
-    p = prepare(parse_case(TINY_CASE))
+    # its model's splines as Python: the loop calls none of them, so the helper starts
+    # on the loop's kernels at once instead of after the spline kernels (about 5 s,
+    # session 22); it compiles them last (_compile_splines)
+    with _native.as_python():
+        p = prepare(parse_case(TINY_CASE))
     engine = NativeEngine(p.model, 0.0, p.options, p.length, 1e-3, p.contact)
     nm = engine.nm
     tangent = np.einsum("lk,lkd->ld", nm.load_dR, nm.x_ref[nm.load_conn])
@@ -348,27 +320,38 @@ def _compile_loop() -> None:
     account = EnergyAccount(0.0, 0.0, dict.fromkeys(DIAGNOSTICS, 0.0))
     limits = Limits.of(StepControl(1e-3, 1e-9), 1e-3, p.length, p.contact.max_penetration)
     calls = _kernel_calls(engine, state)
-    for call in calls[:-RUN_HELPS]:
-        call()
+    for name in HELPER_ORDER:
+        calls[name]()
     paths = _paths()
     if paths is not None:  # a run may step without the loop from now on
         _steps_mark(paths[0]).touch()
     _held_until_released()
-    for call in calls[-RUN_HELPS:]:
-        call()
+    for name in HELPER_AFTER:
+        calls[name]()
     engine.advance(state, new_state(0.0, 1e-3, account), limits, lambda *_: None)
 
 
-def _kernel_calls(engine, state) -> list:
-    """The loop's kernels, each as a call on the engine's model with the types the loop
-    passes, in the helper's order (:func:`_compile_loop`): the contact blocks and the
-    solver (which the run's start needs once it has its contact set), what the start
-    needs late or never (the HHT residual, the attempt), then the contact set at the
-    predictor and the checks after a step, which the start compiles the first parts of.
-    Compiling the loop alone would compile its kernels in the order of its body, the
-    order in which the start compiles the same kernels beside it, so that both
-    processes would compile the same kernel at the same time; in this order each loads
-    from the cache more of what the other has compiled."""
+# the helper's order of the loop's kernels (:func:`_kernel_calls`): the contact blocks
+# and the solver (which the run's start needs once it has its contact set), then what
+# the start needs late or never (the HHT residual, the attempt); compiling the loop alone
+# would compile its kernels in the order of its body, the order in which the start
+# compiles the same kernels beside it, so that both processes would compile the same
+# kernel at the same time; in this order each loads from the cache more of what the
+# other has compiled
+HELPER_ORDER = ("contact_blocks", "newton_update", "_residual_tangent", "_residual", "attempt")
+# ... then, once it has stored the attempt and is let go on (:func:`release`)
+HELPER_AFTER = ("step_set_at", "after_step")
+# the run's help, in its order, once its start is done and while it would otherwise wait
+# for the helper (:func:`help_while_waiting`): the HHT residual and tangent and the
+# solver's update, which the helper comes to after the contact blocks (a start made as
+# Python gets here long before; after a compiled start the helper has them), then the
+# checks after a step and the contact set at the predictor (which its steps need)
+RUN_HELPS = ("_residual_tangent", "newton_update", "after_step", "step_set_at")
+
+
+def _kernel_calls(engine, state) -> dict:
+    """The loop's kernels by name, each as a call on the engine's model with the types
+    the loop passes (HELPER_ORDER, HELPER_AFTER, RUN_HELPS)."""
     import numpy as np
 
     from beamcontact.assembly import native_model as nmod
@@ -396,40 +379,39 @@ def _kernel_calls(engine, state) -> list:
     out = [np.empty(n) for _ in range(4)] + [
         np.empty_like(s.load_state.theta), np.empty_like(s.load_state.tangent),
         np.empty(len(VALUES)), np.empty(len(COUNTS), np.int64)]
-    return [
-        lambda: ns.contact_blocks(x, *frozen, 1.0, sysm.position, band, B, C, D, lay.kl,
-                                  lay.ku, r_pot, r),
-        lambda: bordered.newton_update(band, B, C, D, lay.kl, lay.ku, ar.ipiv,
-                                       ar.ipiv_s, sysm.position, r_layout, du,
-                                       s.u.copy(), False),
-        lambda: ns._residual_tangent(nm, frozen, *history, *system, r, r_pot, r_layout,
-                                     blocks),
-        lambda: ns._residual(nm, frozen, *history, r, r_pot, blocks),
-        lambda: ns.attempt(nm, frozen, sysm.position, sysm.block_positions, sysm.free, band,
-                           B, C, D, ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u,
-                           s.v, s.a, s.f_pot, s.load_state.theta, s.load_state.tangent, 1e-3,
-                           0.0, 1e-8, 1e-9, 1e-9, 1e-3, 1.0, 10, 4, np.nan, np.nan, *out),
-        lambda: ssn.step_set_at(x, x.copy(), v, v.copy(), 1e-3, 0.0, ne, law),
-        lambda: ssn.after_step(x, x.copy(), x.copy(), 0.0, ne, law, frozen[2]),
-    ]
-
-
-# how many of the helper's last kernel calls the run itself makes, last first, once its
-# start is done and while it would otherwise wait for the helper
-RUN_HELPS = 2
+    return {
+        "contact_blocks": lambda: ns.contact_blocks(
+            x, *frozen, 1.0, sysm.position, band, B, C, D, lay.kl, lay.ku, r_pot, r),
+        "newton_update": lambda: bordered.newton_update(
+            band, B, C, D, lay.kl, lay.ku, ar.ipiv, ar.ipiv_s, sysm.position, r_layout, du,
+            s.u.copy(), False),
+        "_residual_tangent": lambda: ns._residual_tangent(
+            nm, frozen, *history, *system, r, r_pot, r_layout, blocks),
+        "_residual": lambda: ns._residual(nm, frozen, *history, r, r_pot, blocks),
+        "attempt": lambda: ns.attempt(
+            nm, frozen, sysm.position, sysm.block_positions, sysm.free, band, B, C, D,
+            ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u, s.v, s.a, s.f_pot, s.load_state.theta,
+            s.load_state.tangent, 1e-3, 0.0, 1e-8, 1e-9, 1e-9, 1e-3, 1.0, 10, 4, np.nan,
+            np.nan, *out),
+        "step_set_at": lambda: ssn.step_set_at(x, x.copy(), v, v.copy(), 1e-3, 0.0, ne, law),
+        "after_step": lambda: ssn.after_step(x, x.copy(), x.copy(), 0.0, ne, law, frozen[2]),
+    }
 
 
 def help_while_waiting(engine, state) -> None:
-    """Before the loop's first call of a run whose helper is still compiling: the last
-    RUN_HELPS of the helper's kernel calls (:func:`_kernel_calls`), last first, so that
-    the helper loads them from the cache when it gets there."""
+    """Before the loop's first call of a run whose helper is still compiling: the
+    kernel calls RUN_HELPS (:func:`_kernel_calls`), so that the helper loads them from
+    the cache when it gets there (one that the helper compiles meanwhile is waited for
+    and loaded, beamcontact/_compile_claims.py)."""
     files = _files()
     if files is None or files[0].exists() or (_helper is None and not files[1].exists()):
         return
-    for call in reversed(_kernel_calls(engine, state)[-RUN_HELPS:]):
+    calls = _kernel_calls(engine, state)
+    for name in RUN_HELPS:
         if files[0].exists():
             return
-        call()
+        calls[name]()
+
 
 if __name__ == "__main__":
     paths = _paths()

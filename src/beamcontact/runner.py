@@ -161,15 +161,15 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     if restart and out_dir is None:
         raise CaseError("a restart needs the output folder of the run to continue")
     watch = Stopwatch()
-    if case.analysis.kind == "dynamic":
-        compile_loop_early(case)
-    with _native.one_thread():
+    as_python = case.analysis.kind == "dynamic" and compile_loop_early(case)
+    with _native.one_thread(), _native.as_python(as_python):
         prepared = prepare(case)
     model, disc, contact = prepared.model, prepared.disc, prepared.contact
     warnings = _start_warnings(prepared, restart)
     run = _run_static if case.analysis.kind == "static" else _run_dynamic
     try:
-        summary, record = run(prepared, case_text, out_dir, progress, restart, drawer)
+        summary, record = run(prepared, case_text, out_dir, progress, restart, drawer,
+                              as_python)
     except OutputError as exc:  # before the first step: the summary says so, if it can
         if out_dir is not None:
             with suppress(OSError):
@@ -268,8 +268,8 @@ def _check_initial_overlap(case: Case, model: Model, contact) -> list[str]:
     return warnings
 
 
-def _run_static(prepared: Prepared, case_text, out_dir, progress,
-                _restart, drawer) -> tuple[dict, RunRecord]:
+def _run_static(prepared: Prepared, case_text, out_dir, progress, _restart, drawer,
+                _as_python: bool = False) -> tuple[dict, RunRecord]:
     case, disc, model = prepared.case, prepared.disc, prepared.model
     rec = RunRecord(case, case_text, disc, model.x_ref, model.n_dof, out_dir, "load_factor",
                     ENERGY_COLUMNS)
@@ -474,12 +474,14 @@ def _dynamic_start(prepared: Prepared, case_text, out_dir, restart) -> tuple[_St
                   _account_from_record(_account_record(diag0)), rec), begin
 
 
-def _run_dynamic(prepared: Prepared, case_text, out_dir, progress,
-                 restart, drawer) -> tuple[dict, RunRecord]:
+def _run_dynamic(prepared: Prepared, case_text, out_dir, progress, restart, drawer,
+                 as_python: bool = False) -> tuple[dict, RunRecord]:
+    """A dynamic run; ``as_python``: its start (the engine, the state and energies at
+    t = 0) with the kernels as Python (setup.start.compile_loop_early)."""
     case, contact = prepared.case, prepared.contact
     an = case.analysis
     interval = case.output.vtk_interval or an.t_end / 100.0
-    with _native.one_thread():
+    with _native.one_thread(), _native.as_python(as_python):
         start, begin = _dynamic_start(prepared, case_text, out_dir, restart)
     rec = start.rec
     next_snapshot = [np.floor(float(start.state.t) / interval + 1e-9) * interval + interval]

@@ -111,26 +111,28 @@ def static_engine(prepared: Prepared):
     return JaxStatics(prepared.model, contact, prepared.options, prepared.length)
 
 
-def compile_loop_early(case: Case) -> None:
+def compile_loop_early(case: Case) -> bool:
     """Before the model of a dynamic case is built: if the native engine will run it and
     the kernel cache lacks the compiled time loop, start the helper that compiles it
-    (beamcontact/_warmup.py), so that it works beside the whole start of the run, the
-    spline kernels that build the model included (runner.py calls it for every dynamic
-    run; :func:`dynamic_start` alone compiles the loop at its first call). A case that
-    the native engine cannot run with its case file's laws starts nothing (its error
-    comes with the start of the run). While the cache lacks the loop, a small model is
-    built with the spline kernels as Python (``_warmup.python_splines_while_cold``).
-    A run that stops on an error in its model leaves the helper to finish filling the
-    cache (under a minute), which the next run then finds."""
+    (beamcontact/_warmup.py), so that it works beside the whole start of the run
+    (runner.py calls it for every dynamic run; :func:`dynamic_start` alone compiles the
+    loop at its first call). Returns whether the run should make its start, from its
+    model to its first energies, with the kernels as Python
+    (``_warmup.start_as_python``: a small model while the cache lacks the loop). A case
+    that the native engine cannot run with its case file's laws starts nothing (its
+    error comes with the start of the run). A run that stops on an error in its model
+    leaves the helper to finish filling the cache (under a minute), which the next run
+    then finds."""
     try:
         native = choose_engine(case)[0] == "native"
     except CaseError:
-        return
-    if native:
-        from beamcontact import _warmup
+        return False
+    if not native:
+        return False
+    from beamcontact import _warmup
 
-        _warmup.start_if_cold()
-        _warmup.python_splines_while_cold(sum(beam.elements for beam in case.beams))
+    _warmup.start_if_cold()
+    return _warmup.start_as_python(sum(beam.elements for beam in case.beams))
 
 
 def dynamic_start(prepared: Prepared, initial: bool = True) -> DynamicStart:
