@@ -380,7 +380,8 @@ def _start(data: dict) -> tuple[list, dict]:
     p = prepare(parse_case(data))
     begin = dynamic_start(p)
     state = begin.state
-    leaves = jax.tree_util.tree_leaves((p.model, p.contact.elements)) + [
+    contact = None if p.contact is None else p.contact.elements
+    leaves = jax.tree_util.tree_leaves((p.model, contact)) + [
         state.u, state.v, state.a, state.f_pot, state.load_state.theta,
         state.load_state.tangent]
     return leaves, begin.engine.energies(state, None)
@@ -394,19 +395,20 @@ def _kernels_bound_to_python() -> list[str]:
             and _native._KERNELS[id(value)].py_func is value]
 
 
-@pytest.mark.parametrize("case", ["tiny", "case_cg.toml", "case_ipip.toml"])
+@pytest.mark.parametrize("case", ["tiny", "free_fall/case_cg.toml", "free_fall/case_ipip.toml",
+                                  "pinned_beam_vibration/case.toml"])
 def test_a_start_made_with_the_kernels_as_python_is_the_compiled_one(case):
     """The start of a run with the kernels as Python (_native.as_python: the helper's
     model, and the start of a small run while the cache lacks the loop): every array of
     the model (control points, basis functions at the quadrature and contact points) and
     of the state at t = 0 (its contact set, the initial acceleration) and the first
     energies are those of the compiled kernels, bit for bit (the helper's tiny model
-    starts in contact, the bundled drops in free flight), and the kernels are bound
-    again after the block."""
+    starts in contact, the bundled drops in free flight, the vibrating beam has no
+    contact), and the kernels are bound again after the block."""
     from beamcontact import examples
 
     data = (_warmup.TINY_CASE if case == "tiny" else
-            tomllib.loads(examples.path("free_fall", case).read_text()))
+            tomllib.loads(examples.path(*case.split("/")).read_text()))
     with _native.as_python():
         python, python_energies = _start(data)
         assert len(_kernels_bound_to_python()) > 100
@@ -415,6 +417,8 @@ def test_a_start_made_with_the_kernels_as_python_is_the_compiled_one(case):
     assert python_energies == energies
     if case == "tiny":
         assert energies["E_contact"] > 0.0  # contact at t = 0
+    if case.startswith("pinned"):
+        assert np.abs(np.asarray(compiled[-4])).max() > 1.0  # a0: falling under gravity
     assert len(python) == len(compiled)
     for ours, kernels in zip(python, compiled, strict=True):
         ours, kernels = np.asarray(ours), np.asarray(kernels)
