@@ -362,3 +362,15 @@ def test_read_only_output_folder_is_invalid_input(tmp_path):
     assert proc.returncode == 2
     _one_line_error(proc, f"error: --out {locked / 'o'}: cannot use this output folder: "
                           f"cannot write in {locked} (permission denied)")
+
+
+@pytest.mark.parametrize("busy", [True, False])
+def test_a_run_says_when_its_helper_still_compiles(monkeypatch, capsys, busy):
+    """A run whose helper (started with empty caches) still compiles the time loop when
+    the run ends says so: the next run started before it is done is slower."""
+    from beamcontact import _warmup, cli
+
+    monkeypatch.setattr(_warmup, "helper_busy", lambda: busy)
+    cli._helper_note()
+    err = capsys.readouterr().err
+    assert ("goes on compiling the native kernels" in err) == busy

@@ -11,7 +11,7 @@ waits for the helper and loads the loop from the cache. The run starts the helpe
 it builds its model (:func:`beamcontact.setup.start.compile_loop_early`), and the helper
 builds its model with the kernels as Python (:func:`beamcontact._native.as_python`), so
 that it does not wait for the spline kernels; a run of a small model makes its whole
-start so (:func:`start_as_python`), and the helper compiles the spline kernels once it
+start so (:func:`start_as_python`), and the helper compiles the start's kernels once it
 has stored the loop. The two share kernels: the
 helper compiles the loop's kernels one by one first (:func:`_kernel_calls`), in an order
 that goes ahead of the start, and the run, its start done, compiles some of them
@@ -186,6 +186,12 @@ def holding() -> bool:
     return _helper is not None and _helper.stdin is not None and not _helper.stdin.closed
 
 
+def helper_busy() -> bool:
+    """Whether the helper this run started is still compiling (it finishes the loop
+    after a short run has ended, :func:`release_if_long`)."""
+    return _helper is not None and _helper.poll() is None
+
+
 def release() -> None:
     """Let the helper this run started go on from the attempt to the loop itself. Until
     then (or the run's end, which closes the helper's input) it waits, so that the
@@ -226,7 +232,7 @@ def wait() -> None:
     ready, lock = files
     release()
     if _helper is not None:
-        # the loop is ready before the helper ends: it compiles the spline kernels then
+        # the loop is ready before the helper ends: it compiles the start's kernels then
         deadline = time.monotonic() + GIVE_UP_S
         while _helper.poll() is None and not ready.exists() and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -268,7 +274,7 @@ def start_as_python(elements: int) -> bool:
     take 0.4 s for the splines and 0.35 s for the rest as Python; compiled, they were
     the first 3.8 s and about 20 s more of a cold run's way to its steps (session 29).
     The kernels that the steps call many times compile as before, and the helper
-    compiles the spline kernels for the next run (:func:`_compile_splines`)."""
+    compiles the kernels of the start for the next run (:func:`_compile_start`)."""
     files = _files()
     return files is not None and not files[0].exists() and \
         elements <= START_AS_PYTHON_ELEMENTS
@@ -276,19 +282,26 @@ def start_as_python(elements: int) -> bool:
 
 # the helper's model with two elements a beam: its build calls every spline kernel that
 # a run's model build does (knot insertion included), with the same argument types
-_SPLINE_CASE = {**TINY_CASE, "beams": [{**beam, "elements": 2}
-                                       for beam in TINY_CASE["beams"]]}
+_START_CASE = {**TINY_CASE, "beams": [{**beam, "elements": 2}
+                                      for beam in TINY_CASE["beams"]]}
 
 
-def _compile_splines() -> None:
-    """In the helper, the loop compiled and marked ready: the spline kernels into the
-    cache, by building a model with them (the helper built its own model with the
-    kernels as Python, and so did a small run that started it, :func:`start_as_python`).
-    """
+def _compile_start() -> None:
+    """In the helper, the loop compiled and marked ready: the kernels of a run's start
+    into the cache for the next run (the spline kernels of the model's build, the
+    contact set at t = 0, the initial acceleration, the first energies and the smallest
+    gap), by making the start of a run of its model with them: the helper built its own
+    model with the kernels as Python, and a small run that started it made its whole
+    start so (:func:`start_as_python`), so that no one has compiled them yet. In a
+    process of its own (``python -m beamcontact._warmup start``): the helper holds
+    versions of some of them compiled inside the loop (the contact energy), which its
+    calls from Python would use, so that the whole versions a run loads would never
+    reach the cache (the first warm run compiled the contact energy, 1.1 s)."""
     from beamcontact.io.case import parse_case
-    from beamcontact.setup.start import prepare
+    from beamcontact.setup.start import dynamic_start, prepare
 
-    prepare(parse_case(_SPLINE_CASE))
+    begin = dynamic_start(prepare(parse_case(_START_CASE)))
+    begin.engine.energies(begin.state, None)
 
 
 def _compile_loop() -> None:
@@ -308,7 +321,7 @@ def _compile_loop() -> None:
     enable_x64()
     # its model's splines as Python: the loop calls none of them, so the helper starts
     # on the loop's kernels at once instead of after the spline kernels (about 5 s,
-    # session 22); it compiles them last (_compile_splines)
+    # session 22); it compiles them last (_compile_start)
     with _native.as_python():
         p = prepare(parse_case(TINY_CASE))
     engine = NativeEngine(p.model, 0.0, p.options, p.length, 1e-3, p.contact)
@@ -414,13 +427,21 @@ def help_while_waiting(engine, state) -> None:
 
 
 if __name__ == "__main__":
+    if sys.argv[1:] == ["start"]:
+        from beamcontact import enable_x64
+
+        enable_x64()
+        _compile_start()
+        raise SystemExit
     paths = _paths()
     try:
         _compile_loop()
         loop_ready()
         if paths is not None:
             _errors(paths[1]).unlink(missing_ok=True)
-        _compile_splines()  # for the next run; this one needs the loop only
+        # for the next run; this one needs the loop only
+        subprocess.run([sys.executable, "-m", "beamcontact._warmup", "start"],
+                       stdin=subprocess.DEVNULL, check=False)
     finally:
         if paths is not None:
             _steps_mark(paths[0]).unlink(missing_ok=True)

@@ -303,6 +303,7 @@ def _report_run(summary: dict, out: Path) -> None:
                f"(compile {summary['compile_time_s']:.2f} s)")
     for warning in summary.get("warnings", []):
         typer.echo(f"warning: {warning}", err=True)
+    _helper_note()
     typer.echo(f"results in {out}")
     if summary.get("figures", "").startswith("not drawn: interrupted"):
         import signal
@@ -313,6 +314,20 @@ def _report_run(summary: dict, out: Path) -> None:
         raise typer.Exit(130 if name is None else 128 + signal.Signals[name])
     if summary["status"] != "completed":
         raise typer.Exit(1)
+
+
+def _helper_note() -> None:
+    """Say so if the helper that this run started with empty caches still compiles the
+    native time loop (beamcontact/_warmup.py): it goes on after the run, and a run
+    started before it is done makes its steps more slowly."""
+    if "beamcontact._warmup" not in sys.modules:
+        return
+    from beamcontact import _warmup
+
+    if _warmup.helper_busy():
+        typer.echo("note: a helper process goes on compiling the native kernels into "
+                   "the cache for about half a minute; a run started before it is done "
+                   "takes longer", err=True)
 
 
 @app.command()
