@@ -165,7 +165,8 @@ def start_if_cold() -> None:
         return None
     try:
         with open(_errors(lock), "wb") as errors:
-            _helper = subprocess.Popen([sys.executable, "-m", "beamcontact._warmup"],
+            # -P: no module of the working folder shadows the package's (as the drawer)
+            _helper = subprocess.Popen([sys.executable, "-P", "-m", "beamcontact._warmup"],
                                        stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                        stderr=errors,
                                        env={**os.environ, _IN_HELPER: "1", _HELD: "1",
@@ -440,7 +441,7 @@ if __name__ == "__main__":
         if paths is not None:
             _errors(paths[1]).unlink(missing_ok=True)
         # for the next run; this one needs the loop only
-        subprocess.run([sys.executable, "-m", "beamcontact._warmup", "start"],
+        subprocess.run([sys.executable, "-P", "-m", "beamcontact._warmup", "start"],
                        stdin=subprocess.DEVNULL, check=False)
     finally:
         if paths is not None:
