@@ -606,9 +606,11 @@ class NativeEngine:
         """Whether a helper is compiling the time loop into an empty cache and has
         stored the attempt (beamcontact/_warmup.py): then the driver's host loop makes
         the steps with :meth:`attempt` meanwhile (dynamics/driver.py), and :meth:`advance`
-        goes on from there once the loop is ready. The first call helps the helper (the
-        contact set at the predictor and the checks after a step, which :meth:`attempt`
-        calls too) and waits until the helper has stored the attempt or the loop; later
+        goes on from there once the loop is ready. The first call helps the helper
+        (``_warmup.RUN_HELPS``: the HHT residual and tangent, the solver's update, and
+        the contact set at the predictor and the checks after a step, which
+        :meth:`attempt` calls from Python) and waits until the helper has stored the
+        attempt or the loop; later
         calls look again at most every LOOK_SECONDS. ``done``: the fraction of the run's
         time made, from which the helper this run holds is let go on
         (:func:`~beamcontact._warmup.release_if_long`)."""
