@@ -43,6 +43,11 @@ _OPTIONS = {"fastmath": False, "error_model": "numpy", "nogil": True}
 _COMPILED_ELSEWHERE = ("dynamics/control.py", "dynamics/report.py")
 
 
+def _kernel_modules() -> list[Path]:
+    """The package's modules of native kernels (``*native*.py``), in a fixed order."""
+    return sorted(Path(__file__).parent.rglob("*native*.py"))
+
+
 def _source_hash() -> str:
     """A hash of every native kernel's source. Numba's cache checks the timestamp of the
     file that holds a function, not of the files whose functions it calls, so a kernel
@@ -50,7 +55,7 @@ def _source_hash() -> str:
     version of the sources cannot."""
     package = Path(__file__).parent
     digest = hashlib.sha256()
-    paths = {*package.rglob("*native*.py"), *(package / p for p in _COMPILED_ELSEWHERE)}
+    paths = {*_kernel_modules(), *(package / p for p in _COMPILED_ELSEWHERE)}
     for path in sorted(paths):
         digest.update(path.relative_to(package).as_posix().encode())
         digest.update(path.read_bytes())
@@ -669,7 +674,7 @@ def _kernels_as_python(python: bool) -> None:
     imports, and its own kernels would compile with them (and fail)."""
     if python:
         package = Path(__file__).parent
-        for path in sorted(package.rglob("*native*.py")):
+        for path in _kernel_modules():
             parts = path.relative_to(package).with_suffix("").parts
             importlib.import_module(".".join((__package__, *parts)))
     for name, module in list(sys.modules.items()):
