@@ -73,6 +73,37 @@ def test_run_end_moment_example_closes_circle(tmp_path):
     assert proc.returncode == 2 and "no column 'nowhere_uy'" in proc.stderr
 
 
+@pytest.mark.parametrize("stdout", ["full", "closed pipe"])
+def test_a_run_goes_on_when_its_messages_cannot_be_written(tmp_path, stdout):
+    """A log on a full disk or a reader of the messages gone (``| head -1``) loses the
+    messages, not the run: every result is written, the exit status is the run's and
+    standard error says what was lost."""
+    if stdout == "full" and not Path("/dev/full").exists():
+        pytest.skip("no /dev/full here")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "beamcontact.cli", "run", str(EXAMPLE), "--out", str(out)]
+    if stdout == "full":
+        with open("/dev/full", "w") as full:
+            proc = subprocess.run(cmd, stdout=full, stderr=subprocess.PIPE, text=True,
+                                  timeout=600)
+        code, err = proc.returncode, proc.stderr
+    else:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        proc.stdout.close()  # the reader is gone before the first line
+        err = proc.stderr.read()
+        code = proc.wait(timeout=600)
+    assert code == 0, err
+    reason = "No space left on device" if stdout == "full" else "Broken pipe"
+    assert (f"warning: messages to standard output were lost from the first that could "
+            f"not be written ({reason})") in err
+    assert "Traceback" not in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["steps"] == 10
+    assert len(read_history(out / "history.csv")["load_factor"]) == 11
+    assert (out / "plots" / "shapes.png").stat().st_size > 0
+
+
 def test_check_accepts_valid_case():
     proc = _cli("check", EXAMPLE)
     assert proc.returncode == 0 and "valid" in proc.stdout

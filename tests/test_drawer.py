@@ -5,7 +5,7 @@ once where it can be, errors are raised in the run, and no process is left behin
 
 import os
 import pickle
-import select
+import selectors
 import sys
 import textwrap
 import time
@@ -121,6 +121,7 @@ def test_a_drawer_with_another_beamcontact_leaves_the_figures_to_the_run(figures
         assert not drawer.draw([_mark(figures, "a")], [_mark(figures, "b")])
         assert drawer.process.returncode == 1
     assert _made_by(figures, "a") == _made_by(figures, "b") == os.getpid()
+    assert drawer.failure == "RuntimeError: another beamcontact than the run's"
 
 
 @linux_only
@@ -141,6 +142,7 @@ def test_a_failing_drawer_leaves_every_figure_to_the_run(figures):
     with Drawer.started() as drawer:
         assert not drawer.draw([_mark(figures, "a")], [fails])
     assert _made_by(figures, "a") == _made_by(figures, "c") == here
+    assert drawer.failure == "OSError: no room"
     # where it fails here too, the error is the run's
     fails_everywhere = ("figs_for_tests:fails_unless_in", (-1, str(figures), "d"), {})
     with Drawer.started() as drawer, pytest.raises(OSError, match="no room"):
@@ -156,6 +158,7 @@ def test_a_hanging_drawer_is_stopped_and_the_figures_drawn_here(figures, monkeyp
     with Drawer.started() as drawer:
         assert not drawer.draw([_mark(figures, "a")], [hangs])
     assert time.monotonic() - start < 60.0
+    assert drawer.failure == "it reported no figure for 3 s"
     assert _made_by(figures, "c") == here
     hung = int((figures / "c.hung").read_text())  # the drawer's copy
     assert hung != here and _gone(hung)
@@ -165,23 +168,65 @@ def test_a_hanging_drawer_is_stopped_and_the_figures_drawn_here(figures, monkeyp
 def test_an_interrupt_stops_the_drawer_and_draws_nothing_here(figures, monkeypatch):
     here = os.getpid()
     hangs = ("figs_for_tests:hangs_unless_in", (here, str(figures), "c"), {})
-    real = select.select
+    real = drawer_module._wait_for
 
-    def interrupted(readers, writers, errors, timeout=None):
+    def interrupted(fd, event, timeout):
         """Ctrl-C while the run waits for the reports, once the figure hangs."""
-        if not readers:
-            return real(readers, writers, errors, timeout)
+        if event != selectors.EVENT_READ:
+            return real(fd, event, timeout)
         deadline = time.monotonic() + 60.0
         while not (figures / "c.hung").exists() and time.monotonic() < deadline:
             time.sleep(0.02)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(select, "select", interrupted)
+    monkeypatch.setattr(drawer_module, "_wait_for", interrupted)
     with Drawer.started() as drawer, pytest.raises(KeyboardInterrupt):
         drawer.draw([hangs], [])
     assert not (figures / "c").exists()
     assert drawer.process.poll() is not None
     assert _gone(int((figures / "c.hung").read_text()))
+
+
+def test_waiting_takes_any_descriptor_number():
+    """The run's pipes may have numbers past select()'s 1024 (a process with many files
+    open, such as a notebook): the wait is a selector's."""
+    resource = pytest.importorskip("resource")
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    high = 1500
+    if hard != resource.RLIM_INFINITY and hard <= high:
+        pytest.skip(f"at most {hard} descriptors here")
+    resource.setrlimit(resource.RLIMIT_NOFILE, (max(soft, high + 1), hard))
+    read, write = os.pipe()
+    try:
+        os.dup2(read, high)
+        assert not drawer_module._wait_for(high, selectors.EVENT_READ, 0.01)
+        os.write(write, b".")
+        assert drawer_module._wait_for(high, selectors.EVENT_READ, 5.0)
+    finally:
+        for fd in (read, write, high):
+            os.close(fd)
+        resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+
+
+@linux_only
+def test_a_run_warns_when_its_drawer_failed(tmp_path, monkeypatch):
+    """The figures drawn by the run after its drawer failed: all there, and the summary
+    says why the drawer did not draw them."""
+    import beamcontact as bc
+    from beamcontact.examples import path
+    from beamcontact.runner import run_case
+
+    case = bc.load_case(path("free_fall", "case_cg.toml"))
+    case = case.model_copy(update={"analysis": case.analysis.model_copy(
+        update={"t_end": 0.02})})
+    monkeypatch.setattr(drawer_module, "_package", lambda: "/elsewhere/beamcontact")
+    with Drawer.started() as drawer:
+        summary = run_case(case, "", tmp_path / "out", drawer=drawer)
+    assert summary["status"] == "completed"
+    assert ("the figures were drawn by the run itself, not by its drawer process "
+            "(beamcontact/drawer.py): RuntimeError: another beamcontact than the run's"
+            in summary["warnings"])
+    assert (tmp_path / "out" / "plots" / "energies.png").stat().st_size > 0
 
 
 @linux_only

@@ -27,6 +27,8 @@ from typing import Annotated
 
 import typer
 
+from beamcontact import terminal
+
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Contact dynamics of slender elastic beams.")
 
@@ -514,6 +516,9 @@ def console() -> None:
     # the start of a run and its figures' drawer; a run limits BLAS to one thread anyway
     # (runner.run_case), so the command line's processes start with one (0.04 s a run)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    # messages that cannot be written (a full disk, a closed pipe) never stop a run
+    terminal.guard_streams()
+    atexit.register(terminal.lost_output)
     try:
         main()
     except SystemExit as exc:
@@ -539,13 +544,23 @@ def _end_now(code) -> None:
     else:  # as Python does: the object printed, status 1
         print(code, file=sys.stderr)
         status = 1
+    _flush(sys.stdout, sys.stderr)  # a write that fails here is reported by an exit handler
     atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except Exception:  # noqa: BLE001  (as Python at exit: status 120)
-            status = status or 120
+    if not _flush(sys.stdout, sys.stderr):
+        status = status or 120  # as Python at exit
     os._exit(status & 0xFF)
+
+
+def _flush(*streams) -> bool:
+    """Flush ``streams``; whether all could be (a None stream is closed: nothing to do)."""
+    flushed = True
+    for stream in streams:
+        try:
+            if stream is not None:
+                stream.flush()
+        except Exception:  # noqa: BLE001
+            flushed = False
+    return flushed
 
 
 if __name__ == "__main__":

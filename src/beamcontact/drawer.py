@@ -25,7 +25,10 @@ two cores or more.
 Whatever goes wrong, every figure is drawn once where it can be: a drawer that cannot be
 started, exits with an error, is not ready within :data:`READY_S` or then reports no
 figure for :data:`STALL_S` is stopped and the run draws them all itself, so that their
-errors are the run's (an :class:`~beamcontact.record.OutputError` with its reason). An
+errors are the run's (an :class:`~beamcontact.record.OutputError` with its reason), and
+:attr:`Drawer.failure` says why the drawer did not draw them (the last line of what it
+wrote to its standard error, kept in a temporary file; the run's summary warns with it,
+since a drawer that always fails doubles the figures' time). An
 interrupt of the run while it waits stops the drawer and draws nothing more (the
 command line then says so and exits as interrupted). ``tests/test_drawer.py``.
 """
@@ -33,10 +36,12 @@ command line then says so and exits as interrupted). ``tests/test_drawer.py``.
 import importlib
 import os
 import pickle
-import select
+import selectors
 import signal
 import subprocess
 import sys
+import tempfile
+import traceback
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 
@@ -76,9 +81,13 @@ class Drawer:
     """A process that imports :mod:`beamcontact.plot` and draws the figures it is sent
     (:meth:`draw`), or exits when its input closes without any."""
 
-    def __init__(self, process: subprocess.Popen):
+    def __init__(self, process: subprocess.Popen, errors):
         self.process = process
         self._ready = False
+        # its standard error (a temporary file), and why it did not draw (None: it did,
+        # or was not asked to)
+        self._errors = errors
+        self.failure: str | None = None
 
     @classmethod
     @contextmanager
@@ -90,6 +99,7 @@ class Drawer:
         finally:
             if drawer is not None:
                 drawer.stop()
+                drawer._errors.close()
 
     @classmethod
     def _start(cls) -> "Drawer | None":
@@ -97,14 +107,18 @@ class Drawer:
         # are POSIX's
         if cores() < 2 or os.name != "posix" or not sys.executable:
             return None
+        errors = None
         try:  # no module of the working folder (-P); it checks it has our package
+            errors = tempfile.TemporaryFile()  # noqa: SIM115  (closed by started())
             process = subprocess.Popen(
                 [sys.executable, "-P", "-m", "beamcontact.drawer", _package()],
-                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=errors,
                 start_new_session=True)
         except OSError:
+            if errors is not None:
+                errors.close()
             return None
-        return cls(process)
+        return cls(process, errors)
 
     def draw(self, first: list[Call], second: list[Call]) -> bool:
         """Draw ``first`` and ``second``, at the same time by the drawer and its copy;
@@ -122,8 +136,25 @@ class Drawer:
             raise
         if not drawn:
             self.stop(hung=True)
+            if n > 0:
+                self.failure = self.failure or self._reason(job is None)
             draw_here(first + second)
         return drawn
+
+    def _reason(self, unpicklable: bool) -> str:
+        """Why the drawer did not draw: the last line of its standard error (its
+        exception), else how it ended."""
+        if unpicklable:
+            return "the figures' data could not be sent to it (not picklable)"
+        last = ""
+        with suppress(OSError, ValueError):
+            self._errors.seek(0)
+            lines = self._errors.read().decode(errors="replace").strip().splitlines()
+            last = lines[-1].strip() if lines else ""
+        if last:
+            return last
+        code = self.process.returncode
+        return "it ended" if code is None else f"it ended with status {code}"
 
     def _send(self, job: bytes) -> bool:
         """Whether the drawer took ``job`` (it reads once it has imported)."""
@@ -131,7 +162,8 @@ class Drawer:
         try:
             os.set_blocking(fd, False)
             while view:
-                if not select.select([], [fd], [], READY_S)[1]:
+                if not _wait_for(fd, selectors.EVENT_WRITE, READY_S):
+                    self.failure = f"it did not read the figures within {READY_S:g} s"
                     return False
                 view = view[os.write(fd, view):]
         except OSError:  # the drawer has exited
@@ -147,7 +179,10 @@ class Drawer:
         READY_S before the drawer is ready and STALL_S after."""
         reports, reported = self.process.stdout.fileno(), 0
         while True:
-            if not select.select([reports], [], [], STALL_S if self._ready else READY_S)[0]:
+            limit = STALL_S if self._ready else READY_S
+            if not _wait_for(reports, selectors.EVENT_READ, limit):
+                self.failure = (f"it reported no figure for {limit:g} s" if self._ready
+                                else f"it was not ready within {limit:g} s")
                 return False
             got = os.read(reports, 64)
             if not got:  # both processes have exited
@@ -173,6 +208,14 @@ class Drawer:
         for stream in (self.process.stdin, self.process.stdout):
             with suppress(OSError):
                 stream.close()
+
+
+def _wait_for(fd: int, event: int, timeout: float) -> bool:
+    """Whether ``fd`` becomes ready for ``event`` (selectors.EVENT_READ or EVENT_WRITE)
+    within ``timeout`` seconds (a selector, not select.select: any descriptor number)."""
+    with selectors.DefaultSelector() as selector:
+        selector.register(fd, event)
+        return bool(selector.select(timeout))
 
 
 def _package() -> str:
@@ -209,8 +252,8 @@ def _serve(jobs: int, reports: int, package: str) -> None:
     _draw_reporting(first + second, reports)
     if copy is not None:
         _, status = os.waitpid(copy, 0)
-        if os.waitstatus_to_exitcode(status) != 0:
-            raise RuntimeError("the drawer's copy failed")
+        if os.waitstatus_to_exitcode(status) != 0:  # its error is on our standard error
+            raise SystemExit(1)
 
 
 def _draw_reporting(calls: list[Call], reports: int) -> None:
@@ -232,6 +275,11 @@ if __name__ == "__main__":
     try:
         _serve(0, _reports, sys.argv[1])
         code = 0
+    except SystemExit:  # stopped, or the copy failed and said why
+        pass
+    except BaseException:  # noqa: BLE001  (to the run's file of our standard error)
+        traceback.print_exc()
+        sys.stderr.flush()
     finally:
         # without the interpreter's teardown (0.05-0.1 s with matplotlib): every file is
         # closed by then

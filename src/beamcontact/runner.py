@@ -196,6 +196,9 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     solver = {**effective_settings(case), **_engine_used(case, model, contact)}
     warnings.append(shared_cores_warning(summary.get("loop_threads"),
                                          solver.get("threads", 1)))
+    if drawer is not None and drawer.failure is not None:
+        warnings.append(f"the figures were drawn by the run itself, not by its drawer "
+                        f"process (beamcontact/drawer.py): {drawer.failure}")
     summary["warnings"] = [w for w in warnings if w is not None]
     # every compile of the run (the model, its start, the solve) and the first attempt's
     # time outside them (XLA, waiting for the helper that compiles the loop)
