@@ -50,6 +50,21 @@ def test_threads_follow_the_free_cores(two_cores, monkeypatch):
     assert share.update() == 2
 
 
+def test_one_thread_until_the_first_reading(two_cores):
+    """A run's loop starts while the drawer that the command line started imports on the
+    other core: one thread until a window of readings says the cores are free."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one thread only on this machine")
+    clock = _Clock()
+    share = _native.CoreShare(window=0.25, sample=clock)
+    share.cores = 2
+    assert share.threads == 1 and numba.get_num_threads() == 1
+    clock.advance(0.1, 0.1, 0.1)  # within the first window: still one
+    assert share.update() == 1
+    clock.advance(0.4, 0.0, 0.4)  # the drawer asleep: both cores ours
+    assert share.update() == 2 and numba.get_num_threads() == 2
+
+
 def test_the_limit_of_a_sweep_worker_holds(monkeypatch, restore_threads):
     monkeypatch.setattr(_native, "_most_threads", 1)
     clock = _Clock()

@@ -269,7 +269,13 @@ class CoreShare:
     count is the cores this process may use, less those other processes kept busy since
     the last reading (rounded), at least 1 and at most the count the process started
     with (``NUMBA_NUM_THREADS``, or 1 in a sweep's worker). The results do not depend on
-    the count (:func:`njit_parallel`). Without /proc/stat the count stays."""
+    the count (:func:`njit_parallel`). Without /proc/stat the count stays.
+
+    Until the first reading the count is one: the command line's run reaches its loop
+    while the drawer it started imports matplotlib on the other core (beamcontact/
+    drawer.py), and two threads beside it made the stiff IPIP drop's loop 0.32-0.34 s
+    instead of 0.14 s without a drawer (benchmarks/README.md, session 30); one window
+    on one thread costs little where the cores are free."""
 
     def __init__(self, window: float = 0.25, sample=_cpu_sample):
         self.most = _most_threads
@@ -277,7 +283,7 @@ class CoreShare:
             else (os.cpu_count() or 1)
         self.window, self._sample = window, sample
         self._last = sample() if self.most > 1 else None
-        self.threads = self.most
+        self.threads = self.most if self._last is None else 1
         numba.set_num_threads(self.threads)
 
     def update(self) -> int:

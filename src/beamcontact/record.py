@@ -82,14 +82,14 @@ class OutputPoints:
         """history.csv columns of the points."""
         return [f"{n}_{c}" for n in self.names for c in ("x", "y", "ux", "uy")]
 
-    def table(self, x: np.ndarray) -> list[list[float]]:
+    def table(self, x: np.ndarray) -> np.ndarray:
         """Positions and displacements of every point, in the order of :meth:`columns`,
-        for k sets of control points x (k, n_cp, 2): k rows."""
+        for k sets of control points x (k, n_cp, 2): (k, 4 points)."""
         parts = []
         for (idx, R), ref in zip(self._samplers, self._ref, strict=True):
             p = self._point(idx, R, x)
             parts += [p, p - ref]
-        return np.concatenate(parts, axis=1).tolist() if parts else [[] for _ in x]
+        return np.concatenate(parts, axis=1) if parts else np.empty((len(x), 0))
 
 
 @dataclass(frozen=True)
@@ -199,18 +199,20 @@ class RunRecord:
         """Append k history rows at once (:meth:`row` of each; u (k, n_dof), ``values``
         the diagnostics' columns and ``extra`` sequences of k), written to history.csv
         in one piece."""
-        points = self.points.table(self.x_ref + np.asarray(u).reshape(len(steps), -1, 2))
-        # Python numbers only (tolist gives them): history.csv writes them by repr
-        value_columns = [np.asarray(values[c], dtype=float).tolist()
-                         for c in self._value_columns]
-        extra_columns = [np.asarray(extra[e], dtype=float).tolist()
-                         for e in self._extra_columns]
-        rows = [[int(step), float(parameter), *p, *(col[k] for col in value_columns),
-                 int(n), int(cut), *(col[k] for col in extra_columns)]
-                for k, (step, parameter, p, n, cut) in enumerate(
-                    zip(steps, parameters, points, iterations, cutbacks, strict=True))]
-        self._rows.append(np.array(rows, dtype=float).reshape(len(rows), len(self.columns)))
+        k = len(steps)
+        points = self.points.table(self.x_ref + np.asarray(u).reshape(k, -1, 2))
+        # the columns in order: integers (step, iterations, cut-backs) and floats
+        columns = [np.asarray(steps, dtype=np.int64), np.asarray(parameters, dtype=float),
+                   *points.T, *(np.asarray(values[c], dtype=float) for c in self._value_columns),
+                   np.asarray(iterations, dtype=np.int64), np.asarray(cutbacks, dtype=np.int64),
+                   *(np.asarray(extra[e], dtype=float) for e in self._extra_columns)]
+        if any(c.shape != (k,) for c in columns):
+            raise ValueError(f"history rows: a column of other than {k} values")
+        self._rows.append(np.column_stack(columns).astype(float, copy=False)
+                          .reshape(k, len(self.columns)))
         if self._writes():
+            # Python numbers (tolist gives them): history.csv writes them by repr
+            rows = list(zip(*(c.tolist() for c in columns), strict=True))
             with writing(self.out_dir / "history.csv", self):
                 self.files.history.write_many(rows)
 
