@@ -54,6 +54,7 @@ def test_dynamic_outputs(tmp_path):
     assert threads is not None and all(1 <= int(k) <= (os.cpu_count() or 1) for k in threads)
     assert sum(threads.values()) <= summary["solve_time_s"] + 1e-3
     assert summary["solver"]["threads"] >= max(map(int, threads), default=1)
+    assert 0.0 <= summary["loop_probe_s"] <= threads.get("1", 0.0)
     assert summary["newton_iterations"] == int(h["newton_iters"].sum())
     # VTU every vtk_interval = 0.01 s: t = 0, 0.01, ..., 0.1
     assert (out / "beams.pvd").read_text().count("<DataSet") == 11
@@ -76,6 +77,11 @@ def test_a_loop_that_shared_its_cores_says_so():
     warning = shared_cores_warning({"1": 5.73, "2": 0.5}, 2)
     assert warning.startswith("the step loop ran 5.73 of its 6.23 s on fewer threads than "
                               "the 2 this process may use")
+    # the first window on one thread, before the cores were read, is no sign of sharing
+    assert shared_cores_warning({"1": 0.25, "2": 0.3}, 2, probe_s=0.25) is None
+    assert shared_cores_warning({"1": 0.25}, 2, probe_s=0.25) is None
+    assert shared_cores_warning({"1": 0.5, "2": 0.3}, 2, probe_s=0.25).startswith(
+        "the step loop ran 0.25 of its 0.80 s")
 
 
 def test_restart_equals_uninterrupted_run(tmp_path):

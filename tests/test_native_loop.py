@@ -62,6 +62,8 @@ def _solve(raw: dict, host: bool):
         seconds = start.engine.thread_seconds
         assert seconds and all(1 <= k <= (os.cpu_count() or 1) for k in seconds)
         assert 0 < sum(seconds.values()) <= res.wall_time
+        # before CoreShare's first reading: one thread
+        assert 0.0 <= start.engine.probe_seconds <= seconds.get(1, 0.0)
     return res, rows
 
 

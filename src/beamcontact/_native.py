@@ -283,7 +283,9 @@ class CoreShare:
             else (os.cpu_count() or 1)
         self.window, self._sample = window, sample
         self._last = sample() if self.most > 1 else None
-        self.threads = self.most if self._last is None else 1
+        # one thread until the first reading (none to make: the count stays)
+        self.probing = self._last is not None
+        self.threads = 1 if self.probing else self.most
         numba.set_num_threads(self.threads)
 
     def update(self) -> int:
@@ -297,6 +299,7 @@ class CoreShare:
         wall = now[0] - self._last[0]
         others = max(0.0, (now[1] - self._last[1]) - (now[2] - self._last[2])) / wall
         self._last = now
+        self.probing = False
         self.threads = max(1, min(self.most, int(self.cores - others + 0.5)))
         numba.set_num_threads(self.threads)
         return self.threads

@@ -195,7 +195,8 @@ def _execute(case: Case, case_text: str, out_dir: Path | None, progress: Progres
     warnings.append(unfinished_amplitude_warning(summary.get("first_amplitude") or {}))
     solver = {**effective_settings(case), **_engine_used(case, model, contact)}
     warnings.append(shared_cores_warning(summary.get("loop_threads"),
-                                         solver.get("threads", 1)))
+                                         solver.get("threads", 1),
+                                         probe_s=summary.get("loop_probe_s") or 0.0))
     if drawer is not None and drawer.failure is not None:
         warnings.append(f"the figures were drawn by the run itself, not by its drawer "
                         f"process (beamcontact/drawer.py): {drawer.failure}")
@@ -520,7 +521,8 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress, restart, draw
                    "t_final": result.t,
                    "solve_time_s": result.wall_time,
                    "compile_time_s": tally.first_step_s or 0.0,
-                   "loop_threads": _loop_threads(begin.engine)}
+                   "loop_threads": _loop_threads(begin.engine),
+                   "loop_probe_s": _loop_probe(begin.engine)}
     except (KeyboardInterrupt, SystemError) as exc:
         summary = {**tally.interrupted("t", interrupt_of(exc)), "rejections": tally.rejections(),
                    "t_final": tally.reached}
@@ -539,6 +541,15 @@ def _loop_threads(engine) -> dict[str, float] | None:
     seconds = getattr(engine, "thread_seconds", None)
     return None if seconds is None else {str(k): round(v, 4)
                                          for k, v in sorted(seconds.items())}
+
+
+def _loop_probe(engine) -> float | None:
+    """Seconds of the native engine's compiled time loop on one thread before its first
+    reading of the cores (_native.CoreShare; docs/engines.md, "Threads"): in
+    ``loop_threads`` too, but no sign of cores shared with other processes. None for the
+    JAX engine."""
+    seconds = getattr(engine, "probe_seconds", None)
+    return None if seconds is None else round(seconds, 4)
 
 
 def _dynamic_results(rec: RunRecord, contact) -> dict:

@@ -102,17 +102,21 @@ def unfinished_amplitude_warning(first_amplitude: dict) -> str | None:
             f"analysis.t_end gives the amplitude)")
 
 
-def shared_cores_warning(loop_threads: dict | None, most: int,
-                         share: float = 0.1) -> str | None:
+def shared_cores_warning(loop_threads: dict | None, most: int, share: float = 0.1,
+                         probe_s: float = 0.0) -> str | None:
     """A warning when the native engine's compiled time loop ran more than ``share`` of
     its time on fewer threads than the ``most`` its process may use (``loop_threads``:
     seconds per thread count, summary.json): other processes kept cores busy, so the run
     took longer than on an idle machine; its numbers are the same (docs/engines.md,
-    "Threads"). None otherwise, and for the JAX engine (``loop_threads`` None)."""
+    "Threads"). ``probe_s``: the seconds on one thread before the first reading of the
+    cores (summary.json ``loop_probe_s``), not counted as shared. None otherwise, and for
+    the JAX engine (``loop_threads`` None)."""
     if not loop_threads:
         return None
     total = sum(loop_threads.values())
     fewer = sum(seconds for count, seconds in loop_threads.items() if int(count) < most)
+    if most > 1:
+        fewer = max(fewer - probe_s, 0.0)
     if total <= 0.0 or fewer <= share * total:
         return None
     return (f"the step loop ran {fewer:.2f} of its {total:.2f} s on fewer threads than the "

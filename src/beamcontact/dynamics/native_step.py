@@ -586,8 +586,10 @@ class NativeEngine:
         self._looked: tuple[float, bool] | None = None
         self._meanwhile_since: float | None = None
         self._meanwhile_threads = 0
-        # seconds of the compiled loop per thread count (_native.CoreShare), for the summary
+        # seconds of the compiled loop per thread count (_native.CoreShare), and of them
+        # those on one thread before CoreShare's first reading, for the summary
         self.thread_seconds: dict[int, float] = {}
+        self.probe_seconds = 0.0
         _native.set_threads(None)  # after another run that ended on one thread meanwhile
 
     def _known_energy(self, u: np.ndarray, frozen: tuple) -> float:
@@ -727,6 +729,7 @@ class NativeEngine:
                    np.empty((budget, len(COUNTS)), np.int64), np.empty((budget, ctl.size)))
             made[:] = 0
             cores.update()
+            probing = cores.probing
             t0 = time.perf_counter()
             try:
                 why = native_loop.run(self.nm, ne, law, self._contact is not None, system,
@@ -740,6 +743,8 @@ class NativeEngine:
             seconds = time.perf_counter() - t0
             self.thread_seconds[cores.threads] = (self.thread_seconds.get(cores.threads, 0.0)
                                                   + seconds)
+            if probing:
+                self.probe_seconds += seconds
             if first_s is None:
                 first_s = watch.outside_compiles()  # waiting for the helper, loading
                 _warmup.loop_ready()
