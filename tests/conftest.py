@@ -1,10 +1,14 @@
-"""Test configuration: float64 everywhere (as the CLI sets it), and compiled programs
-released between test modules."""
+"""Test configuration: float64 everywhere (as the CLI sets it), compiled programs
+released between test modules, and the native kernels' cache located before any test
+changes the environment: ``_native`` reads the cache folder once, when first imported,
+and a first import inside a test that points XDG_CACHE_HOME at a temporary folder (the
+cache-location test) left every later in-process run compiling afresh."""
 
 import jax
 import pytest
 
 import beamcontact
+import beamcontact._native  # noqa: F401  (its kernel cache is where this process's environment says)
 
 beamcontact.enable_x64()
 
