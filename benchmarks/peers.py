@@ -33,7 +33,11 @@ and PyElastica runs 0.01 s once, untimed, to fill its numba cache.
 Prints one table per case with both times, both as ratios to the first code of the table
 (PyElastica at its reference step) and the largest |difference| of the midspan
 deflection A_uy from it (for the peer drop also up to 1.2 s: its later contacts depend
-on the phase of the beams' vibration, and the histories of any two runs part there).
+on the phase of the beams' vibration, and the histories of any two runs part there),
+and for each run of beamcontact what an empty two-thread parallel loop costs more than
+a one-thread one just before and just after it (peers/fork_join.py: about 0.2 us or 1.4
+us on the machine of benchmarks/README.md, whose two vCPUs share a cache in some
+minutes and not in others; the two-thread loops are fast or slow accordingly).
 
     pip install ".[peers]"                      # PyElastica and Exudyn
     python benchmarks/peers.py [--cases drop stiff bundled scaling] [--repeat 3]
@@ -126,16 +130,29 @@ def exudyn(dt: float, t_end: float, out: Path, E: float) -> dict:
             "csv": out}
 
 
+def _fork_join_us() -> float:
+    """What an empty two-thread parallel loop costs more than a one-thread one on this
+    machine now [us] (peers/fork_join.py, in a process of its own): about 0.2 us when
+    the two vCPUs share a cache, about 1.4 us when not (benchmarks/README.md, session
+    30); beamcontact's two-thread loops follow it."""
+    _, out = _run([sys.executable, str(PEERS / "fork_join.py")])
+    return float(out.strip())
+
+
 def beamcontact_run(case: Path | None, out: Path, label: str, env: dict | None = None) -> dict:
-    """``beamcontact run`` as a user types it; the whole process is timed."""
+    """``beamcontact run`` as a user types it; the whole process is timed, and the
+    two-thread cost of :func:`_fork_join_us` measured before and after it."""
     cmd = [sys.executable, "-m", "beamcontact.cli", "run"] + ([str(case)] if case else []) \
         + ["--out", str(out), "--quiet"]
+    before = _fork_join_us()
     wall, _ = _run(cmd, env)
+    after = _fork_join_us()
     summary = json.loads((out / "summary.json").read_text())
     return {"code": label, "time": wall, "process": wall, "csv": out / "history.csv",
             "loop": summary["solve_time_s"], "steps": summary["steps"],
             "iterations": summary["newton_iterations"],
-            "compile": summary.get("compile_time_s", 0.0)}
+            "compile": summary.get("compile_time_s", 0.0),
+            "fork_join": f"{before:.2f} / {after:.2f}"}
 
 
 def _drop_case_file(model: str, t_end: float, E: float, folder: Path,
@@ -177,8 +194,9 @@ def _table(title: str, rows: list[dict], t_end: float | None,
     print(f"\n{title}")
     window = "" if until is None else f" | to {until:g} s [cm]"
     print("| code | process [s] | step loop [s] | first row / this: process | "
-          f"step loop | steps | Newton it. | max dev. of A_uy from the first [cm]{window} |")
-    print("|---|---|---|---|---|---|---|---|" + ("---|" if until is not None else ""))
+          f"step loop | steps | Newton it. | max dev. of A_uy from the first [cm]{window} | "
+          "two-thread fork-join before / after [us] |")
+    print("|---|---|---|---|---|---|---|---|---|" + ("---|" if until is not None else ""))
     ref = rows[0]
     for r in rows:
         ends = [] if t_end is None else [t_end] + ([] if until is None else [until])
@@ -187,7 +205,7 @@ def _table(title: str, rows: list[dict], t_end: float | None,
         print(f"| {r['code']} | {r['process']:.2f} | {loop:.2f} | "
               f"{ref['process'] / r['process']:.2f} | "
               f"{ref.get('loop', ref['time']) / loop:.2f} | {r.get('steps', '')} | "
-              f"{r.get('iterations', '')} | {dev} |")
+              f"{r.get('iterations', '')} | {dev} | {r.get('fork_join', '')} |")
 
 
 def case_drop(tmp: Path, args, E: float = 1.0e7, t_end: float = 2.0, stiff: bool = False):
