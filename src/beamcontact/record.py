@@ -206,8 +206,6 @@ class RunRecord:
                    *points.T, *(np.asarray(values[c], dtype=float) for c in self._value_columns),
                    np.asarray(iterations, dtype=np.int64), np.asarray(cutbacks, dtype=np.int64),
                    *(np.asarray(extra[e], dtype=float) for e in self._extra_columns)]
-        if any(c.shape != (k,) for c in columns):
-            raise ValueError(f"history rows: a column of other than {k} values")
         self._rows.append(np.column_stack(columns).astype(float, copy=False)
                           .reshape(k, len(self.columns)))
         if self._writes():

@@ -114,9 +114,8 @@ def shared_cores_warning(loop_threads: dict | None, most: int, share: float = 0.
     if not loop_threads:
         return None
     total = sum(loop_threads.values())
-    fewer = sum(seconds for count, seconds in loop_threads.items() if int(count) < most)
-    if most > 1:
-        fewer = max(fewer - probe_s, 0.0)
+    fewer = max(sum(seconds for count, seconds in loop_threads.items() if int(count) < most)
+                - probe_s, 0.0)
     if total <= 0.0 or fewer <= share * total:
         return None
     return (f"the step loop ran {fewer:.2f} of its {total:.2f} s on fewer threads than the "
