@@ -336,6 +336,68 @@ def test_approach_ratios(name, cp, ne, x):
         assert max(ratios) == 0.0  # no pair at all
 
 
+def _every_pair_ratio(x0, fields, ne, pairs, slack, at_least):
+    """approach / room over every point pair of the blocks ``pairs`` (no pair skipped by a
+    bound), with the pair arithmetic of :func:`ssn.approach_ratio`, from the same contact
+    points: the largest, or ``at_least``."""
+    X = ssn._pair_points(x0, ne.conn, ne.R, pairs)
+    D = [ssn._pair_points(f, ne.conn, ne.R, pairs) for f in fields]
+    ns = X.shape[1]
+    ratio = at_least
+    for e1, e2 in pairs:
+        r12 = ne.radius[e1] + ne.radius[e2]
+        rx = X[e1, :, None, 0] - X[e2, None, :, 0]
+        ry = X[e1, :, None, 1] - X[e2, None, :, 1]
+        d = np.sqrt(rx * rx + ry * ry)
+        room = d - r12 + slack
+        dd = np.maximum(d, 1e-300)
+        nx, ny = rx / dd, ry / dd
+        approach = np.zeros_like(d)
+        for f in D:
+            dx = f[e1, :, None, 0] - f[e2, None, :, 0]
+            dy = f[e1, :, None, 1] - f[e2, None, :, 1]
+            approach = approach + np.maximum(-(nx * dx + ny * dy), 0.0)
+        touch = np.array([[ssn.point_may_touch(ne, e1, e2, i, j) for j in range(ns)]
+                          for i in range(ns)])
+        counted = touch & (room > 1e-2 * slack)
+        if counted.any():
+            ratio = max(ratio, float(np.max((approach / room)[counted])))
+    return ratio
+
+
+def _sliding_pair():
+    """Two parallel beams 1 mm apart with 60 points per element (the bundled benchmark's
+    resolution): most pairs of a block lie far along the beams."""
+    return _setup([beam("lower", line=([0, 0], [2, 0]), degree=4, elements=4, radius=0.05),
+                   beam("upper", line=([0.3, 0.101], [1.3, 0.101]), degree=4, elements=2,
+                        radius=0.05)], "cg", segments_per_element=60)
+
+
+@pytest.mark.parametrize(("name", "cp", "ne", "x"),
+                         CASES + [pytest.param("sliding", *_sliding_pair()[:2],
+                                               _sliding_pair()[2], id="sliding-60")])
+def test_approach_ratio_skips_only_pairs_that_cannot_count(name, cp, ne, x):
+    """The bounds by which :func:`ssn.approach_ratio` skips blocks, rows and chunks of
+    points leave its value that of every pair, bit for bit: beams moving together (large
+    motions, small approaches: the bounds by motion are loose), apart, and towards each
+    other, with and without a threshold ``at_least``."""
+    pairs = ssn.candidate_pairs(x, ne, 0.5)
+    slack = float(cp.law.advance_slack())
+    rng = np.random.default_rng(7)
+    seen = []
+    for common, relative in ((1e-2, 1e-4), (1e-3, 1e-3), (0.0, 2e-2)):
+        for _ in range(2):
+            fields = np.stack([common * rng.normal(size=2) + relative * rng.normal(size=x.shape),
+                               relative * rng.normal(size=x.shape)])
+            for at_least in (0.0, 0.05, ssn.ADVANCE_FRACTION):
+                native = ssn.approach_ratio(x, fields, ne, pairs, slack, at_least)
+                assert native == _every_pair_ratio(x, fields, ne, pairs, slack, at_least)
+                if at_least == 0.0:
+                    seen.append(native)
+    if "2.0" not in name:
+        assert max(seen) > 0.0  # some pair approached
+
+
 @pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES)
 def test_missed_blocks(name, cp, ne, x):
     """The post-step check at a configuration moved from the predictor: the same flag, the

@@ -47,9 +47,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from beamcontact._native import njit, njit_parallel, prange
+from beamcontact._native import njit, njit_inline, njit_parallel, njit_uncounted, prange
 from beamcontact.arrays_native import copy_2d
-from beamcontact.contact.blocks_native import bounding_box, point_box_gap2
+from beamcontact.contact.blocks_native import CHUNK, bounding_box, chunk_boxes, point_box_gap2
 from beamcontact.dynamics.control import ADVANCE_ACCEPT, ADVANCE_FRACTION
 
 # the tie rule of point_weights_on_device: two gaps are equal within RTOL max(1, |q|)
@@ -702,7 +702,8 @@ def approach_ratio(x0, fields, ne, pairs, slack, at_least=0.0):
             motion; two: the predictor's h v and h^2 a / 2).
         slack: s, the distance added to the gap.
         at_least: a ratio below which the caller needs no value (the threshold of its
-            test): blocks, rows and pairs that cannot exceed it are skipped unseen.
+            test): blocks, rows, chunks of CHUNK points of the other element and pairs
+            that cannot exceed it are skipped unseen.
 
     0 when no pair approaches; pairs with room q + s <= s / 100 are left out (in contact).
     Rows at or beyond E (the JAX padding) are skipped, so a JAX list may be passed as is.
@@ -719,20 +720,20 @@ def approach_ratio(x0, fields, ne, pairs, slack, at_least=0.0):
         copy_2d(dxs[f], D[:, :, 0])
         copy_2d(dys[f], D[:, :, 1])
     # bounds: the room of a pair is at least the distance of the point boxes less R1 + R2
-    # plus s, its approach at most the sum over the fields of the two points' motions
+    # plus s, its approach at most the sum over the fields of the two points' motions;
+    # the same for chunks of CHUNK points of an element (their boxes and largest motion)
     box = _point_boxes(X, pairs, E)
+    chunk_box = _chunk_boxes(X, pairs, E)
+    chunk_motion = np.zeros((E, chunk_box.shape[1]))
     motion = np.zeros((E, ns))
     motion_max = np.zeros(E)
+    done = np.zeros(E, dtype=np.bool_)
     for c in range(pairs.shape[0]):
         for side in range(2):
             e = pairs[c, side]
-            if e < E:
-                for i in range(ns):
-                    m = 0.0
-                    for f in range(F):
-                        m += math.sqrt(dxs[f, e, i] ** 2 + dys[f, e, i] ** 2)
-                    motion[e, i] = m * (1.0 + _BOUND_MARGIN)
-                    motion_max[e] = max(motion_max[e], motion[e, i])
+            if e < E and not done[e]:
+                _element_motion(e, dxs, dys, motion, motion_max, chunk_motion)
+                done[e] = True
     floor = 1e-2 * slack
     # the blocks in the order of their bound, largest first: a block whose bound is below
     # the ratio found is skipped unseen
@@ -750,41 +751,98 @@ def approach_ratio(x0, fields, ne, pairs, slack, at_least=0.0):
             continue
         if bound[c] <= ratio:
             continue  # no pair of this block can exceed the ratio found
-        r12 = radius[e1] + radius[e2]
-        # two beams: every pair may interact, no test per pair
-        whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
-        for i in range(ns):
-            room_i = (_corner_distance(xx[e1, i], xy[e1, i], xx[e1, i], xy[e1, i], box[e2])
+        ratio = _block_ratio(ratio, e1, e2, xx, xy, dxs, dys, box, motion, motion_max,
+                             chunk_box, chunk_motion, radius[e1] + radius[e2], slack, floor,
+                             beam, allowed, s, exclusion)
+    return ratio
+
+
+@njit_uncounted
+def _element_motion(e, dxs, dys, motion, motion_max, chunk_motion):
+    """The motion bounds of :func:`approach_ratio` for element e: of each of its points
+    (the sum over the fields of its length, raised by _BOUND_MARGIN), the largest, and
+    the largest of each chunk of CHUNK points."""
+    ns = dxs.shape[2]
+    for i in range(ns):
+        m = 0.0
+        for f in range(dxs.shape[0]):
+            m += math.sqrt(dxs[f, e, i] ** 2 + dys[f, e, i] ** 2)
+        motion[e, i] = m * (1.0 + _BOUND_MARGIN)
+        motion_max[e] = max(motion_max[e], motion[e, i])
+        chunk_motion[e, i // CHUNK] = max(chunk_motion[e, i // CHUNK], motion[e, i])
+
+
+@njit_uncounted
+def _block_ratio(ratio, e1, e2, xx, xy, dxs, dys, box, motion, motion_max, chunk_box,
+                 chunk_motion, r12, slack, floor, beam, allowed, s, exclusion):
+    """The largest of ``ratio`` and approach / room over the point pairs of the block
+    (e1, e2) (:func:`approach_ratio`'s loop): a row of element e1 is skipped whole when
+    its room to the box of element e2 and the motions bound its pairs' ratios by the
+    ratio found, and likewise each chunk of element e2's points within a row."""
+    ns = xx.shape[1]
+    # two beams: every pair may interact, no test per pair
+    whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
+    for i in range(ns):
+        px, py = xx[e1, i], xy[e1, i]
+        room_i = (_point_box_distance(px, py, box[e2, 0], box[e2, 1], box[e2, 2], box[e2, 3])
+                  * (1.0 - _BOUND_MARGIN) - r12 + slack)
+        if room_i > floor and (motion[e1, i] + motion_max[e2]) <= ratio * room_i:
+            continue  # no pair of this row can exceed the ratio found
+        for k in range(chunk_box.shape[1]):
+            room_k = (_point_box_distance(px, py, chunk_box[e2, k, 0], chunk_box[e2, k, 1],
+                                          chunk_box[e2, k, 2], chunk_box[e2, k, 3])
                       * (1.0 - _BOUND_MARGIN) - r12 + slack)
-            if room_i > floor and (motion[e1, i] + motion_max[e2]) <= ratio * room_i:
-                continue  # no pair of this row can exceed the ratio found
-            for j in range(ns):
-                if not (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)):
-                    continue
-                rx = xx[e1, i] - xx[e2, j]
-                ry = xy[e1, i] - xy[e2, j]
-                d = math.sqrt(rx * rx + ry * ry)
-                room = d - r12 + slack
-                # pairs with room <= s / 100 are in contact: left to the law
-                if not room > floor:
-                    continue
-                # the approach along n = r / max(d, 1e-300) times max(d, 1e-300): the
-                # divisions only for a pair that may raise the ratio
-                dd = max(d, 1e-300)
-                scaled = 0.0
-                for f in range(F):
-                    dx = dxs[f, e1, i] - dxs[f, e2, j]
-                    dy = dys[f, e1, i] - dys[f, e2, j]
-                    scaled += max(-(rx * dx + ry * dy), 0.0)
-                if scaled > ratio * room * dd * (1.0 - _BOUND_MARGIN):
-                    # as the JAX twin: n by two divisions, the approach over the room
-                    nx, ny = rx / dd, ry / dd
-                    approach = 0.0
-                    for f in range(F):
-                        dx = dxs[f, e1, i] - dxs[f, e2, j]
-                        dy = dys[f, e1, i] - dys[f, e2, j]
-                        approach += max(-(nx * dx + ny * dy), 0.0)
-                    ratio = max(ratio, approach / room)
+            if room_k > floor and (motion[e1, i] + chunk_motion[e2, k]) <= ratio * room_k:
+                continue  # nor of this chunk
+            ratio = _chunk_ratio(ratio, i, k * CHUNK, min((k + 1) * CHUNK, ns), e1, e2,
+                                 whole, xx, xy, dxs, dys, r12, slack, floor, beam, allowed,
+                                 s, exclusion)
+    return ratio
+
+
+@njit_inline
+def _point_box_distance(px, py, lo_x, lo_y, hi_x, hi_y):
+    """The distance of the point (px, py) to a box, at most the distance computed for
+    any point pair with a point in the box (every operation rounds monotonically)."""
+    dx = max(px - hi_x, lo_x - px, 0.0)
+    dy = max(py - hi_y, lo_y - py, 0.0)
+    return math.sqrt(dx * dx + dy * dy)
+
+
+@njit_uncounted
+def _chunk_ratio(ratio, i, first, last, e1, e2, whole, xx, xy, dxs, dys, r12, slack, floor,
+                 beam, allowed, s, exclusion):
+    """The largest of ``ratio`` and approach / room over the pairs of point i of element
+    e1 with the points first..last-1 of element e2 (:func:`approach_ratio`'s pair
+    arithmetic)."""
+    F = dxs.shape[0]
+    for j in range(first, last):
+        if not (whole or _point_may_touch(beam, allowed, s, exclusion, e1, e2, i, j)):
+            continue
+        rx = xx[e1, i] - xx[e2, j]
+        ry = xy[e1, i] - xy[e2, j]
+        d = math.sqrt(rx * rx + ry * ry)
+        room = d - r12 + slack
+        # pairs with room <= s / 100 are in contact: left to the law
+        if not room > floor:
+            continue
+        # the approach along n = r / max(d, 1e-300) times max(d, 1e-300): the divisions
+        # only for a pair that may raise the ratio
+        dd = max(d, 1e-300)
+        scaled = 0.0
+        for f in range(F):
+            dx = dxs[f, e1, i] - dxs[f, e2, j]
+            dy = dys[f, e1, i] - dys[f, e2, j]
+            scaled += max(-(rx * dx + ry * dy), 0.0)
+        if scaled > ratio * room * dd * (1.0 - _BOUND_MARGIN):
+            # as the JAX twin: n by two divisions, the approach over the room
+            nx, ny = rx / dd, ry / dd
+            approach = 0.0
+            for f in range(F):
+                dx = dxs[f, e1, i] - dxs[f, e2, j]
+                dy = dys[f, e1, i] - dys[f, e2, j]
+                approach += max(-(nx * dx + ny * dy), 0.0)
+            ratio = max(ratio, approach / room)
     return ratio
 
 
@@ -842,6 +900,7 @@ def missed_blocks(x, ne, frozen_pairs, reach, interaction):
     pairs = candidate_pairs(x, ne, reach)
     P = _pair_points(x, ne.conn, ne.R, pairs)
     box = _point_boxes(P, pairs, E)
+    chunk_box = _chunk_boxes(P, pairs, E)
     radius = ne.radius
     # a block is skipped unseen when its point boxes are further apart than the gap found
     # and, if not frozen, than the interaction distance: the nearest block first, alone,
@@ -855,10 +914,12 @@ def missed_blocks(x, ne, frozen_pairs, reach, interaction):
     missing = False
     gap = math.inf
     if first >= 0:
-        missing, gap = _block_missed(first, False, math.inf, pairs, P, near, frozen, radius,
-                                     interaction, beam, allowed, s, exclusion)
-        flags, gaps = _blocks_missed(first, missing, gap, pairs, P, near, frozen, radius,
-                                     interaction, beam, allowed, s, exclusion)
+        missing, gap = _block_missed(first, False, math.inf, pairs, P, box, chunk_box, near,
+                                     frozen, radius, interaction, beam, allowed, s,
+                                     exclusion)
+        flags, gaps = _blocks_missed(first, missing, gap, pairs, P, box, chunk_box, near,
+                                     frozen, radius, interaction, beam, allowed, s,
+                                     exclusion)
         for c in range(pairs.shape[0]):
             missing = missing or flags[c]
             gap = min(gap, gaps[c])
@@ -868,8 +929,8 @@ def missed_blocks(x, ne, frozen_pairs, reach, interaction):
 
 
 @njit_parallel
-def _blocks_missed(first, missing, gap, pairs, P, near, frozen, radius, interaction, beam,
-                   allowed, s, exclusion):
+def _blocks_missed(first, missing, gap, pairs, P, box, chunk_box, near, frozen, radius,
+                   interaction, beam, allowed, s, exclusion):
     """:func:`_block_missed` of every block but ``first``, on the cores, each from the
     ``missing`` and ``gap`` of that one: (missed flags, gaps)."""
     flags = np.zeros(pairs.shape[0], dtype=np.bool_)
@@ -878,40 +939,71 @@ def _blocks_missed(first, missing, gap, pairs, P, near, frozen, radius, interact
         if c != first:
             # prange counts in uint64: the index as the serial call passes it, so that
             # the kernel is compiled once
-            flags[c], gaps[c] = _block_missed(np.int64(c), missing, gap, pairs, P, near,
-                                              frozen, radius, interaction, beam, allowed,
-                                              s, exclusion)
+            flags[c], gaps[c] = _block_missed(np.int64(c), missing, gap, pairs, P, box,
+                                              chunk_box, near, frozen, radius, interaction,
+                                              beam, allowed, s, exclusion)
     return flags, gaps
 
 
 @njit
-def _block_missed(c, missing, gap, pairs, P, near, frozen, radius, interaction, beam,
-                  allowed, s, exclusion):
+def _chunk_boxes(P, pairs, E):
+    """(E, n_chunks, 4) boxes (lo_x, lo_y, hi_x, hi_y) of the chunks of CHUNK contact
+    points (the last may be short) of the elements that occur in ``pairs``
+    (:func:`~beamcontact.contact.blocks_native.chunk_boxes`; the others are left as they
+    are)."""
+    out = np.empty((E, (P.shape[1] + CHUNK - 1) // CHUNK, 4))
+    for c in range(pairs.shape[0]):
+        for side in range(2):
+            e = pairs[c, side]
+            if e < E:
+                chunk_boxes(P[e], out[e])
+    return out
+
+
+@njit
+def _block_missed(c, missing, gap, pairs, P, box, chunk_box, near, frozen, radius,
+                  interaction, beam, allowed, s, exclusion):
     """(an interacting block c missing from ``frozen``, the smallest gap of its point pairs
     or ``gap``), given a block already ``missing`` and a ``gap`` already found (the
     arithmetic of :func:`missed_blocks`)."""
-    ns = P.shape[1]
     e1, e2 = pairs[c, 0], pairs[c, 1]
     r12 = radius[e1] + radius[e2]
     check = not (missing or frozen[e1, e2])
     if near[c] - r12 >= gap and not (check and near[c] < interaction):
         return False, gap
-    whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
-    # the smallest squared distance first, one square root after: the square root and
-    # d - r12 are monotone in floating point too, so the nearest d and the smallest gap
-    # are the numbers that a root per pair would give
-    nearest2 = math.inf
-    for i in range(ns):
-        for j in range(ns):
-            rx = P[e1, i, 0] - P[e2, j, 0]
-            ry = P[e1, i, 1] - P[e2, j, 1]
-            sq = rx * rx + ry * ry
-            if sq < nearest2 and (whole or _point_may_touch(beam, allowed, s, exclusion,
-                                                            e1, e2, i, j)):
-                nearest2 = sq
-    nearest = math.sqrt(nearest2)
+    nearest = math.sqrt(_nearest2(e1, e2, P, box, chunk_box, beam, allowed, s, exclusion))
     gap = min(gap, nearest - r12)
     return check and nearest < interaction, gap
+
+
+@njit_uncounted
+def _nearest2(e1, e2, P, box, chunk_box, beam, allowed, s, exclusion):
+    """The smallest squared distance of the point pairs of elements e1, e2 that may
+    interact (inf: none). The smallest squared distance first, one square root after: the
+    square root and d - r12 are monotone in floating point too, so the nearest d and the
+    smallest gap are the numbers that a root per pair would give. A row of e1, and a
+    chunk of CHUNK points of e2 within a row, whose box is no nearer than the nearest
+    pair found is skipped unseen (point_box_gap2 is a lower bound in floating point)."""
+    ns = P.shape[1]
+    whole = allowed[beam[e1], beam[e2]] and beam[e1] != beam[e2]
+    nearest2 = math.inf
+    for i in range(ns):
+        px, py = P[e1, i, 0], P[e1, i, 1]
+        if point_box_gap2(px, py, box[e2, 0], box[e2, 1], box[e2, 2],
+                          box[e2, 3]) >= nearest2:
+            continue
+        for k in range(chunk_box.shape[1]):
+            if point_box_gap2(px, py, chunk_box[e2, k, 0], chunk_box[e2, k, 1],
+                              chunk_box[e2, k, 2], chunk_box[e2, k, 3]) >= nearest2:
+                continue
+            for j in range(k * CHUNK, min((k + 1) * CHUNK, ns)):
+                rx = px - P[e2, j, 0]
+                ry = py - P[e2, j, 1]
+                sq = rx * rx + ry * ry
+                if sq < nearest2 and (whole or _point_may_touch(beam, allowed, s,
+                                                                exclusion, e1, e2, i, j)):
+                    nearest2 = sq
+    return nearest2
 
 
 # ---------------------------------------------------------------- the set of one step
