@@ -103,14 +103,9 @@ def test_plot_functions_by_name_are_those_of_beamcontact_plot(figures):
 
 
 def test_no_drawer_on_one_core(monkeypatch):
-    monkeypatch.setattr(drawer_module, "cores", lambda: 1)
+    monkeypatch.setattr(drawer_module, "usable_cores", lambda: 1)
     with Drawer.started() as drawer:
         assert drawer is None
-
-
-@linux_only
-def test_the_cores_are_those_this_process_may_use():
-    assert drawer_module.cores() == len(os.sched_getaffinity(0))
 
 
 @linux_only

@@ -34,6 +34,7 @@ import numba.extending
 
 from beamcontact import _compile_claims
 from beamcontact._cache import cache_dir
+from beamcontact.cores import usable_cores
 
 _OPTIONS = {"fastmath": False, "error_model": "numpy", "nogil": True}
 
@@ -279,8 +280,7 @@ class CoreShare:
 
     def __init__(self, window: float = 0.25, sample=_cpu_sample):
         self.most = _most_threads
-        self.cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") \
-            else (os.cpu_count() or 1)
+        self.cores = usable_cores()
         self.window, self._sample = window, sample
         self._last = sample() if self.most > 1 else None
         # one thread until the first reading (none to make: the count stays)

@@ -28,6 +28,7 @@ from typing import Annotated
 import typer
 
 from beamcontact import terminal
+from beamcontact.cores import usable_cores
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Contact dynamics of slender elastic beams.")
@@ -385,7 +386,7 @@ def sweep(
         "Running the same sweep again skips completed runs.")] = None,
     workers: Annotated[int | None, typer.Option(
         "--workers", "-w", min=1, help="Worker processes of the local Dask cluster "
-        "(default: the number of cores, at most the number of runs).")] = None,
+        "(default: the cores this process may run on, at most the number of runs).")] = None,
     scheduler: Annotated[str | None, typer.Option(
         "--scheduler", help="Address of an existing Dask scheduler (tcp://HOST:PORT) "
         "instead of a local cluster; its workers need beamcontact and must see --out.")] = None,
@@ -424,7 +425,7 @@ def sweep(
     if out is None:
         _fail("--out DIR is required (the sweep folder; rerunning into it resumes)", 2)
     _check_out_dir(out)
-    n_workers = workers or max(1, min(os.cpu_count() or 1, len(members)))
+    n_workers = workers or max(1, min(usable_cores(), len(members)))
     rows = _sweep_with_progress(members, out, [p.name for p in parsed.output.points],
                                 n_workers, scheduler, show=not quiet, dashboard=dashboard)
     _report_sweep(rows, out)

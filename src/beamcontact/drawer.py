@@ -45,6 +45,8 @@ import traceback
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 
+from beamcontact.cores import usable_cores
+
 # a figure: a function by name (of beamcontact.plot, or "module:function"), its
 # positional and keyword arguments (pickled to the drawer: data, no objects of matplotlib)
 Call = tuple[str, tuple, dict]
@@ -68,13 +70,6 @@ def draw_here(calls: list[Call]) -> None:
         module, _, function = name.rpartition(":")
         getattr(importlib.import_module(module or "beamcontact.plot"), function)(
             *args, **kwargs)
-
-
-def cores() -> int:
-    """The cores this process may run on."""
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1
 
 
 class Drawer:
@@ -105,7 +100,7 @@ class Drawer:
     def _start(cls) -> "Drawer | None":
         # one core: it would only take turns with the run; its pipes and process group
         # are POSIX's
-        if cores() < 2 or os.name != "posix" or not sys.executable:
+        if usable_cores() < 2 or os.name != "posix" or not sys.executable:
             return None
         errors = None
         try:  # no module of the working folder (-P); it checks it has our package
@@ -241,7 +236,7 @@ def _serve(jobs: int, reports: int, package: str) -> None:
         return
     first, second = pickle.loads(b"".join(chunks))
     copy = None
-    if second and sys.platform.startswith("linux") and cores() > 1:  # a fork is safe there
+    if second and sys.platform.startswith("linux") and usable_cores() > 1:  # a fork is safe there
         with suppress(OSError):  # else both halves here
             copy = os.fork()
         if copy == 0:
