@@ -212,7 +212,7 @@ def _scatter_add(dofs, r_e, r_out):
 # increment and decrement of every array, which cost a third of the time of the strain
 # kernels when the gravity helper took it.
 
-@njit
+@njit_inline
 def _gravity_force(R, wq, g_ref, e, c, gravity, r_e):
     """r_e += the gradient of c times element e's gravity potential -int g . r ds
     (ds = wq sqrt(g*); c = lam rho A gravity_on), which is linear in x (no tangent)."""
@@ -224,7 +224,7 @@ def _gravity_force(R, wq, g_ref, e, c, gravity, r_e):
             r_e[2 * k + 1] -= w * R[e, q, k] * gy
 
 
-@njit
+@njit_inline
 def _gravity_energy(R, wq, g_ref, e, gravity, x_e):
     """-int g . r ds of element e at its control points x_e (times rho A gravity_on lam by
     the caller)."""
@@ -325,19 +325,28 @@ def external_energies(nm, x, lam, theta_n, t_n):
     """(E_gravity, E_ext) of :func:`energies` alone, at the control points x (n_cp, 2): a
     time step takes E_strain from its last Newton evaluation (:func:`hht_residual_blocks`),
     at the same x."""
-    n_el, n = nm.conn.shape
-    x_e = np.empty((n, 2))
-    e_grav = e_ext = 0.0
-    for e in range(n_el):
-        _gather(x, nm.conn[e], x_e)
-        e_grav += (nm.rho_area[e] * nm.gravity_on[e]
-                   * _gravity_energy(nm.R, nm.wq, nm.g_ref, e, nm.gravity, x_e))
+    x_e = np.empty((nm.conn.shape[1], 2))
+    e_grav = _gravity_energies(nm.R, nm.wq, nm.g_ref, nm.rho_area, nm.gravity_on, nm.gravity,
+                               nm.conn, x, x_e)
+    e_ext = 0.0
     for i in range(nm.load_conn.shape[0]):
         _gather(x, nm.load_conn[i], x_e)
         e_ext += lam * loads_native.point_load_potential(
             x_e, nm.load_R[i], nm.load_dR[i], nm.load_force[i], nm.load_moment[i], theta_n[i],
             t_n[i])
     return lam * e_grav, e_ext
+
+
+@njit_uncounted
+def _gravity_energies(R, wq, g_ref, rho_area, gravity_on, gravity, conn, x, x_e):
+    """The sum over the elements, in element order, of rho A gravity_on times
+    :func:`_gravity_energy` at the control points x (x_e: scratch; no reference counts
+    for the views of an element)."""
+    e_grav = 0.0
+    for e in range(conn.shape[0]):
+        _gather(x, conn[e], x_e)
+        e_grav += rho_area[e] * gravity_on[e] * _gravity_energy(R, wq, g_ref, e, gravity, x_e)
+    return e_grav
 
 
 @njit_inline

@@ -76,7 +76,7 @@ def rotational_point(g1x, g1y, v1x, v1y, a1x, a1y, m_out, jac_out, jacobians=Tru
     jac_out[2, 1, 1] = ny * ny / g
 
 
-@njit
+@njit_inline
 def _row_dot(B, q, w_e):
     """B_q w_e for the basis row q of B (n_qp, n) and control-point values w_e (n, 2).
     Rows are indexed, not sliced: a slice is a new array whose reference count costs more
@@ -293,7 +293,7 @@ def _point_kinematics(R, dR, q, u_e, un_e, vn_e, an_e, xref_e, coeffs):
     return ax, ay, g_x + e_x, g_y + e_y, v1x, v1y, a1x, a1y
 
 
-@njit
+@njit_inline
 def element_kinetic_energy(x_e, v_e, R, dR, wq, g_ref, rho_area, rho_inertia):
     """T = 1/2 sum_q ds_q (rho A |v|^2 + rho I omega^2), omega = (n . v1) / sqrt(g)
     (eq. 18), as :func:`~beamcontact.beam.inertia.element_kinetic_energy`."""
@@ -310,7 +310,7 @@ def element_kinetic_energy(x_e, v_e, R, dR, wq, g_ref, rho_area, rho_inertia):
     return 0.5 * T
 
 
-@njit
+@njit_inline
 def element_momentum(v_e, R, wq, g_ref, rho_area, p_out):
     """Linear momentum rho A sum_q ds_q v(xi_q) of one element into p_out (2,), as
     :func:`~beamcontact.beam.inertia.element_momentum`."""
