@@ -374,8 +374,8 @@ def _sliding_pair():
 
 
 @pytest.mark.parametrize(("name", "cp", "ne", "x"),
-                         CASES + [pytest.param("sliding", *_sliding_pair()[:2],
-                                               _sliding_pair()[2], id="sliding-60")])
+                         CASES + [pytest.param("sliding", *_sliding_pair()[:3],
+                                               id="sliding-60")])
 def test_approach_ratio_skips_only_pairs_that_cannot_count(name, cp, ne, x):
     """The bounds by which :func:`ssn.approach_ratio` skips blocks, rows and chunks of
     points leave its value that of every pair, bit for bit: beams moving together (large
