@@ -429,6 +429,33 @@ def test_missed_blocks(name, cp, ne, x):
         assert any(flags) and not flags[0]  # the full set at the predictor misses nothing
 
 
+@pytest.mark.parametrize(("name", "cp", "ne", "x"),
+                         CASES + [pytest.param("sliding", *_sliding_pair()[:3],
+                                               id="sliding-60")])
+def test_smallest_gap_is_that_of_every_pair(name, cp, ne, x):
+    """The nearest-pair search after a step skips rows and chunks of points by their
+    boxes: its smallest gap is still the smallest over every point pair of the
+    candidate blocks that may interact, bit for bit (one square root of the smallest
+    squared distance, less R1 + R2), at configurations bent from the case's."""
+    for seed, step in ((0, 0.0), (3, 0.01), (4, 0.05)):
+        x_new = _bent(x, seed, step) if step else x
+        pairs = ssn.candidate_pairs(x_new, ne, cp.reach)
+        if pairs.shape[0] == 0:
+            continue
+        P = ssn._pair_points(x_new, ne.conn, ne.R, pairs)
+        ns = P.shape[1]
+        smallest = np.inf
+        for e1, e2 in pairs:
+            sq = ((P[e1, :, None, 0] - P[e2, None, :, 0]) ** 2
+                  + (P[e1, :, None, 1] - P[e2, None, :, 1]) ** 2)
+            touch = np.array([[ssn.point_may_touch(ne, e1, e2, i, j) for j in range(ns)]
+                              for i in range(ns)])
+            if touch.any():
+                smallest = min(smallest, float(np.sqrt(sq[touch].min()))
+                               - (ne.radius[e1] + ne.radius[e2]))
+        assert ssn.missed_blocks(x_new, ne, pairs, cp.reach, cp.interaction)[2] == smallest
+
+
 def test_far_apart_gap_is_the_box_bound():
     """No candidate: the smallest gap is the lower bound from the boxes, which for two
     straight beams 2 apart is their distance less both radii."""
