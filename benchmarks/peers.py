@@ -27,9 +27,12 @@ case check, the compiled kernels from the warm cache, the step loop and every ou
 file: plots, animation, ParaView series) and its *step loop* (the peers' as their scripts
 print it: numba or C++ compiled, the energy sampling of PyElastica excluded;
 beamcontact's ``solve_time_s`` of summary.json, which includes writing history.csv,
-results.h5 and the VTU series as the steps come). Before the timed runs beamcontact runs
-each case once, untimed, to fill the compilation cache (the targets are "warm caches"),
-and PyElastica runs 0.01 s once, untimed, to fill its numba cache.
+results.h5 and the VTU series as the steps come), and beside it the *steps alone*: the
+step loop without its output (beamcontact's ``solve_time_s - writing_time_s``; a peer's
+loop, which writes nothing), the like-for-like comparison of the stepping itself.
+Before the timed runs beamcontact runs each case once, untimed, to fill the compilation
+cache (the targets are "warm caches"), and PyElastica runs 0.01 s once, untimed, to fill
+its numba cache.
 Prints one table per case with both times, both as ratios to the first code of the table
 (PyElastica at its reference step) and the largest |difference| of the midspan
 deflection A_uy from it (for the peer drop also up to 1.2 s: its later contacts depend
@@ -150,7 +153,9 @@ def beamcontact_run(case: Path | None, out: Path, label: str, env: dict | None =
     after = _fork_join_us()
     summary = json.loads((out / "summary.json").read_text())
     return {"code": label, "time": wall, "process": wall, "csv": out / "history.csv",
-            "loop": summary["solve_time_s"], "steps": summary["steps"],
+            "loop": summary["solve_time_s"],
+            "stepping": summary["solve_time_s"] - summary.get("writing_time_s", 0.0),
+            "steps": summary["steps"],
             "iterations": summary["newton_iterations"],
             "compile": summary.get("compile_time_s", 0.0),
             "fork_join": f"{before:.2f} / {after:.2f}"}
@@ -194,19 +199,22 @@ def _table(title: str, rows: list[dict], t_end: float | None,
     A_uy from the first row's over the run and, with ``until``, up to that time."""
     print(f"\n{title}")
     window = "" if until is None else f" | to {until:g} s [cm]"
-    print("| code | process [s] | step loop [s] | first row / this: process | "
-          f"step loop | steps | Newton it. | max dev. of A_uy from the first [cm]{window} | "
-          "two-thread fork-join before / after [us] |")
-    print("|---|---|---|---|---|---|---|---|---|" + ("---|" if until is not None else ""))
+    print("| code | process [s] | step loop [s] | steps alone [s] | first row / this: "
+          "process | step loop | steps alone | steps | Newton it. | max dev. of A_uy from "
+          f"the first [cm]{window} | two-thread fork-join before / after [us] |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if until is not None else ""))
     ref = rows[0]
     for r in rows:
         ends = [] if t_end is None else [t_end] + ([] if until is None else [until])
         dev = " | ".join(f"{100 * d:.2f}" for d in _deviations(ref["csv"], r["csv"], ends))
         loop = r.get("loop", r["time"])
-        print(f"| {r['code']} | {r['process']:.2f} | {loop:.2f} | "
+        stepping = r.get("stepping", loop)
+        print(f"| {r['code']} | {r['process']:.2f} | {loop:.2f} | {stepping:.2f} | "
               f"{ref['process'] / r['process']:.2f} | "
-              f"{ref.get('loop', ref['time']) / loop:.2f} | {r.get('steps', '')} | "
-              f"{r.get('iterations', '')} | {dev} | {r.get('fork_join', '')} |")
+              f"{ref.get('loop', ref['time']) / loop:.2f} | "
+              f"{ref.get('stepping', ref.get('loop', ref['time'])) / stepping:.2f} | "
+              f"{r.get('steps', '')} | {r.get('iterations', '')} | {dev} | "
+              f"{r.get('fork_join', '')} |")
 
 
 def case_drop(tmp: Path, args, E: float = 1.0e7, t_end: float = 2.0, stiff: bool = False):

@@ -57,6 +57,7 @@ def test_run_end_moment_example_closes_circle(tmp_path):
     assert summary["status"] == "completed"
     assert summary["steps"] == 10 and summary["newton_iterations"] == h["newton_iters"].sum()
     assert 0 < summary["compile_time_s"] < summary["wall_time_s"]
+    assert 0 < summary["writing_time_s"] < summary["solve_time_s"]  # 11 rows and snapshots
     vtus = sorted((out / "vtk").glob("*.vtu"))
     assert len(vtus) == 11 and (out / "beams.pvd").read_text().count("<DataSet") == 11
     assert (out / "plots" / "shapes.png").stat().st_size > 0

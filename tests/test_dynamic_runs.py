@@ -53,6 +53,8 @@ def test_dynamic_outputs(tmp_path):
     threads = summary["loop_threads"]
     assert threads is not None and all(1 <= int(k) <= (os.cpu_count() or 1) for k in threads)
     assert sum(threads.values()) <= summary["solve_time_s"] + 1e-3
+    # the steps' writing is part of the loop's time: 101 rows and states, 11 snapshots
+    assert 0 < summary["writing_time_s"] < summary["solve_time_s"]
     assert summary["solver"]["threads"] >= max(map(int, threads), default=1)
     assert 0.0 <= summary["loop_probe_s"] <= threads.get("1", 0.0)
     assert summary["newton_iterations"] == int(h["newton_iters"].sum())

@@ -303,7 +303,9 @@ def _report_run(summary: dict, out: Path) -> None:
     typer.echo(f"{summary['status']}: {summary['message']}")
     typer.echo(f"steps {summary['steps']}, Newton iterations {summary['newton_iterations']}, "
                f"cut-backs {summary['cutbacks']}, wall time {summary['wall_time_s']:.2f} s "
-               f"(compile {summary['compile_time_s']:.2f} s)")
+               f"(compile {summary['compile_time_s']:.2f} s"
+               + (f", writing the steps {summary['writing_time_s']:.2f} s"
+                  if "writing_time_s" in summary else "") + ")")
     for warning in summary.get("warnings", []):
         typer.echo(f"warning: {warning}", err=True)
     _helper_note()

@@ -71,6 +71,7 @@ class _Tally:
     reached: float = 0.0
     first_step_s: float | None = None  # until the first step, outside Numba's compiles
     rejected: np.ndarray | None = None  # by kind (dynamics)
+    writing_s: float = 0.0  # the accepted steps written (history, states, snapshots)
 
     def accept(self, step: int, reached: float, iterations: int, cutbacks: int,
                rejected: np.ndarray | None = None) -> None:
@@ -107,7 +108,7 @@ class _Tally:
     def _counters(self) -> dict:
         return {"steps": self.steps, "newton_iterations": self.iterations,
                 "cutbacks": self.cutbacks, "solve_time_s": time.perf_counter() - self.start.wall,
-                "compile_time_s": self.first_step_s or 0.0}
+                "compile_time_s": self.first_step_s or 0.0, "writing_time_s": self.writing_s}
 
 
 def run_case(case: Case, case_text: str, out_dir: Path | None,
@@ -280,6 +281,7 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress, _restart, draw
     tally = _Tally()
 
     def on_step(s: StaticStep) -> None:
+        t0 = time.perf_counter()
         e = s.energies
         e = {**e, "E_total": total_energy({**e, "E_kin": 0.0})}
         rec.row(s.step, s.load_factor, s.u, e, s.iterations, s.cutbacks)
@@ -288,6 +290,7 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress, _restart, draw
             rec.snapshot(s.load_factor, s.u)
         if s.step > 0:
             tally.accept(s.step, s.load_factor, s.iterations, s.cutbacks)
+        tally.writing_s += time.perf_counter() - t0
         if progress is not None:
             progress(ProgressInfo(s.load_factor, "load_factor", s.load_factor, s.step,
                                   None, s.iterations))
@@ -300,7 +303,8 @@ def _run_static(prepared: Prepared, case_text, out_dir, progress, _restart, draw
                    "steps": result.steps, "newton_iterations": result.iterations,
                    "cutbacks": result.cutbacks, "final_load_factor": result.load_factor,
                    "solve_time_s": result.wall_time,
-                   "compile_time_s": tally.first_step_s or 0.0}
+                   "compile_time_s": tally.first_step_s or 0.0,
+                   "writing_time_s": tally.writing_s}
     except (KeyboardInterrupt, SystemError) as exc:
         summary = {**tally.interrupted("load_factor", interrupt_of(exc)),
                    "final_load_factor": tally.reached}
@@ -493,6 +497,7 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress, restart, draw
                    reached=float(start.state.t), rejected=start.rejected)
 
     def on_steps(batch: StepBatch) -> None:
+        t0 = time.perf_counter()
         cutbacks = start.cutbacks + batch.cutbacks
         rejected = start.rejected + batch.rejected
         iterations = start.iterations + batch.iterations_total
@@ -504,6 +509,7 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress, restart, draw
             if tj >= next_snapshot[0] - 1e-9 * interval or tj >= an.t_end - 1e-12:
                 rec.snapshot(tj, batch.states[j].u)
                 next_snapshot[0] = np.floor(tj / interval + 1e-9) * interval + interval
+        tally.writing_s += time.perf_counter() - t0
         if progress is not None:
             progress(ProgressInfo(t / an.t_end, "t", t, step, float(batch.dt[-1]),
                                   int(batch.iterations[-1])))
@@ -521,6 +527,7 @@ def _run_dynamic(prepared: Prepared, case_text, out_dir, progress, restart, draw
                    "t_final": result.t,
                    "solve_time_s": result.wall_time,
                    "compile_time_s": tally.first_step_s or 0.0,
+                   "writing_time_s": tally.writing_s,
                    "loop_threads": _loop_threads(begin.engine),
                    "loop_probe_s": _loop_probe(begin.engine)}
     except (KeyboardInterrupt, SystemError) as exc:
