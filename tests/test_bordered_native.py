@@ -171,6 +171,28 @@ def test_assembly_equals_dense_scatter(case):
     assert all(np.all(a == 0.0) for a in many[:4])
 
 
+def test_add_blocks_of_every_kind_is_add_block_of_each():
+    """Blocks within the band (at its full width, which the unchecked path must leave to
+    the checked one when the widths differ), within the border, across both (contact) and
+    padded (zeros at position 0), each with zero entries: add_blocks stores what
+    add_block does one block at a time, bit for bit."""
+    rng = np.random.default_rng(7)
+    n_b, kl, ku, m = 30, 5, 3, 8
+    dofs = np.array([[4, 5, 6, 7], [10, 11, 13, 14], [31, 32, 34, 37], [2, 3, 32, 33],
+                     [0, 0, 20, 21], [12, 13, 14, 15], [30, 31, 32, 33]], dtype=np.int64)
+    ks = rng.standard_normal((len(dofs), 4, 4))
+    ks[rng.random(ks.shape) < 0.2] = 0.0
+    ks[4, :2, :] = ks[4, :, :2] = 0.0  # padding entries carry exact zeros
+    ks[1][dofs[1][None, :] - dofs[1][:, None] > ku] = 0.0  # within kl below, ku above
+    one, many = bn.allocate(bn.layout(n_b, kl, ku, m)), bn.allocate(bn.layout(n_b, kl, ku, m))
+    for d, k in zip(dofs, ks, strict=True):
+        bn.add_block(one.band, one.B, one.C, one.D, kl, ku, d, k)
+    bn.add_blocks(many.band, many.B, many.C, many.D, kl, ku, dofs, ks)
+    for a, b in zip(one[:4], many[:4], strict=True):
+        assert np.array_equal(a, b)
+    assert np.count_nonzero(many.B) and np.count_nonzero(many.D)
+
+
 def test_add_block_rejects_what_it_cannot_store():
     arrays = bn.allocate(bn.layout(20, 2, 3, 4))
     args = (arrays.band, arrays.B, arrays.C, arrays.D, 2, 3)
@@ -187,9 +209,18 @@ def test_add_block_rejects_what_it_cannot_store():
         bn.add_block(*args, np.array([23, 24], dtype=np.int64), np.ones((2, 2)))
     with pytest.raises(ValueError, match="outside the system"):
         bn.add_block(*args, np.array([-1], dtype=np.int64), np.ones((1, 1)))
+    # the same through add_blocks, whose blocks within the band or the border skip the
+    # checks of each entry: a block it cannot store goes the checked way
+    for d, message in (([0, 3], "outside the band"), ([23, 24], "outside the system"),
+                       ([-1, 0], "outside the system")):
+        with pytest.raises(ValueError, match=message):
+            bn.add_blocks(*args, np.array([d], dtype=np.int64), np.ones((1, 2, 2)))
     # bandwidths that are not those of the storage
     with pytest.raises(ValueError, match="do not match"):
         bn.add_block(arrays.band, arrays.B, arrays.C, arrays.D, 3, 2, np.arange(2), np.eye(2))
+    with pytest.raises(ValueError, match="do not match"):
+        bn.add_blocks(arrays.band, arrays.B, arrays.C, arrays.D, 3, 2, np.arange(2)[None],
+                      np.eye(2)[None])
     with pytest.raises(ValueError, match="do not match"):
         bn.factor(arrays.band, arrays.B, arrays.C, arrays.D, 3, 3, arrays.ipiv, arrays.ipiv_s)
 

@@ -434,7 +434,7 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
     _hht_elements(x, nm.conn, nm.dR, nm.ddR, nm.wq, nm.g_ref, nm.K_ref, nm.eta, nm.w_eta,
                   nm.E, nm.x_ref, u.reshape(shape), u_n.reshape(shape), v_n.reshape(shape),
                   a_n.reshape(shape), coeffs, nm.R, nm.rho_area, nm.rho_inertia, r_el, k_out,
-                  energies, r_in, k_in, tangent,
+                  energies, r_in, k_in, tangent, c,
                   energy_native.element_scratch(n_el, n) + _inertia_scratch(n_el, n))
     e_strain = 0.0
     for e in range(n_el):  # in element order, as block_strain_residual_tangent sums
@@ -443,48 +443,58 @@ def hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t
     for i in range(r_out.shape[0]):
         r_out[i] = c * r_pot_out[i] - alpha * f_pot_n[i]
     if tangent:
-        k_out *= c
-    _add_inertia_elements(nm.block_dofs, r_in, k_in, r_out, k_out, tangent)
+        _scale_blocks(k_out, n_el, c)  # the loads' (the elements' are scaled above)
+    _add_inertia_forces(nm.block_dofs, r_in, r_out)
     return e_strain
 
 
 @njit_uncounted
-def _add_inertia_elements(block_dofs, r_in, k_in, r_out, k_out, tangent):
-    """The elements' inertia forces r_in[e] added to r_out and (``tangent``) their blocks
-    k_in[e] to k_out[e], in element order (no reference counts for the views of an
-    element)."""
-    m = k_in.shape[1]
+def _scale_blocks(k, first, c):
+    """k[b] *= c for the blocks b >= first (element by element: ``k[b] *= c`` on a view
+    compiles Numba's error message for mismatched shapes)."""
+    for b in range(first, k.shape[0]):
+        for i in range(k.shape[1]):
+            for j in range(k.shape[2]):
+                k[b, i, j] *= c
+
+
+@njit_uncounted
+def _add_inertia_forces(block_dofs, r_in, r_out):
+    """The elements' inertia forces r_in[e] added to r_out, in element order (no
+    reference counts for the views of an element)."""
     for e in range(r_in.shape[0]):
         _scatter_add(block_dofs[e], r_in[e], r_out)
-        if tangent:
-            # element by element: k_out[e] += k_in[e] compiles Numba's error message for
-            # mismatched shapes (1 s with empty caches)
-            for i in range(m):
-                for j in range(m):
-                    k_out[e, i, j] += k_in[e, i, j]
 
 
 @njit_parallel_uncounted
 def _hht_elements(x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, x_ref, u2, un2, vn2, an2,
-                  coeffs, R, rho_area, rho_inertia, r_strain, k_strain, energies, r_inertia,
-                  k_inertia, tangent, scratch):
-    """Each element's strain force, block and energy (as
+                  coeffs, R, rho_area, rho_inertia, r_strain, k_hht, energies, r_inertia,
+                  k_inertia, tangent, c, scratch):
+    """Each element's strain force and energy (as
     :func:`~beamcontact.beam.energy_native.block_strain_residual_tangent`) into
-    r_strain[e], k_strain[e], energies[e] and its inertia force and block (as
-    :func:`inertia_residual_blocks`) into r_inertia[e], k_inertia[e], in one pass over the
-    elements on the cores: one parallel loop per evaluation of the HHT residual instead
-    of two, each element whole on one thread (``tangent`` False: no blocks). ``scratch``:
-    :func:`~beamcontact.beam.energy_native.element_scratch` and :func:`_inertia_scratch`
-    of the elements, the caller's (this loop allocates nothing: no reference counts)."""
+    r_strain[e], energies[e], its inertia force (as :func:`inertia_residual_blocks`) into
+    r_inertia[e] and (``tangent``) its block of the HHT tangent, K_i + c K_p with
+    c = 1 + alpha, into k_hht[e] (k_inertia[e] is scratch), in one pass over the elements
+    on the cores: one parallel loop per evaluation of the HHT residual instead of two,
+    each element whole on one thread. The block is formed where its two parts are in
+    the cache: the numbers of scaling every block, then adding the inertia's, bit for
+    bit. ``scratch``: :func:`~beamcontact.beam.energy_native.element_scratch` and
+    :func:`_inertia_scratch` of the elements, the caller's (this loop allocates nothing:
+    no reference counts)."""
     n_el = conn.shape[0]
+    m = k_inertia.shape[1]
     x_all, grad_all, hess_all, w_all, m_all, jac_all, J_all = scratch
     for e in prange(n_el):
         energies[e] = energy_native.element_strain_at(
             e, x, conn, dR, ddR, wq, g_ref, K_ref, eta, w_eta, E, x_all[e], grad_all[e],
-            hess_all[e], r_strain[e], k_strain[e], tangent)
+            hess_all[e], r_strain[e], k_hht[e], tangent)
         _element_inertia_at(e, conn, x_ref, u2, un2, vn2, an2, coeffs, R, dR, wq, g_ref,
                             rho_area, rho_inertia, w_all[e], m_all[e], jac_all[e], J_all[e],
                             r_inertia[e], k_inertia[e], tangent)
+        if tangent:
+            for i in range(m):
+                for j in range(m):
+                    k_hht[e, i, j] = c * k_hht[e, i, j] + k_inertia[e, i, j]
 
 
 @njit

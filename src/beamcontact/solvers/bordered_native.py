@@ -196,9 +196,37 @@ def add_block(band, B, C, D, kl, ku, dofs, k_local):
 
 @njit_uncounted
 def add_blocks(band, B, C, D, kl, ku, dofs, blocks):
-    """:func:`add_block` for each block: dofs (n_blocks, k), blocks (n_blocks, k, k)."""
+    """:func:`add_block` for each block: dofs (n_blocks, k), blocks (n_blocks, k, k). A
+    block whose positions all lie in the band, within the narrower of its widths of each
+    other, or all in the border (an element of a beam) is added without the checks of
+    each entry: the same sums in the same order."""
+    _check_widths(band, kl, ku)
+    n_b = band.shape[0]
+    n = n_b + D.shape[0]
+    kv = kl + ku
+    k = dofs.shape[1]
     for e in range(dofs.shape[0]):
-        add_block(band, B, C, D, kl, ku, dofs[e], blocks[e])
+        lo = hi = dofs[e, 0]
+        for a in range(1, k):
+            lo = min(lo, dofs[e, a])
+            hi = max(hi, dofs[e, a])
+        if lo >= 0 and hi < n_b and hi - lo <= min(kl, ku):
+            for a in range(k):
+                i = dofs[e, a]
+                for b in range(k):
+                    v = blocks[e, a, b]
+                    if v != 0.0:
+                        j = dofs[e, b]
+                        band[j, kv + i - j] += v
+        elif lo >= n_b and hi < n:
+            for a in range(k):
+                i = dofs[e, a] - n_b
+                for b in range(k):
+                    v = blocks[e, a, b]
+                    if v != 0.0:
+                        D[i, dofs[e, b] - n_b] += v
+        else:
+            add_block(band, B, C, D, kl, ku, dofs[e], blocks[e])
 
 
 @njit
