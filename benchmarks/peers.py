@@ -154,7 +154,7 @@ def beamcontact_run(case: Path | None, out: Path, label: str, env: dict | None =
     summary = json.loads((out / "summary.json").read_text())
     return {"code": label, "time": wall, "process": wall, "csv": out / "history.csv",
             "loop": summary["solve_time_s"],
-            "stepping": summary["solve_time_s"] - summary.get("writing_time_s", 0.0),
+            "stepping": summary["solve_time_s"] - summary["writing_time_s"],
             "steps": summary["steps"],
             "iterations": summary["newton_iterations"],
             "compile": summary.get("compile_time_s", 0.0),

@@ -373,9 +373,11 @@ def _sliding_pair():
                         radius=0.05)], "cg", segments_per_element=60)
 
 
-@pytest.mark.parametrize(("name", "cp", "ne", "x"),
-                         CASES + [pytest.param("sliding", *_sliding_pair()[:3],
-                                               id="sliding-60")])
+# the cases above and the sliding pair, built once at collection
+CASES_AND_SLIDING = CASES + [pytest.param("sliding", *_sliding_pair()[:3], id="sliding-60")]
+
+
+@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES_AND_SLIDING)
 def test_approach_ratio_skips_only_pairs_that_cannot_count(name, cp, ne, x):
     """The bounds by which :func:`ssn.approach_ratio` skips blocks, rows and chunks of
     points leave its value that of every pair, bit for bit: beams moving together (large
@@ -429,9 +431,7 @@ def test_missed_blocks(name, cp, ne, x):
         assert any(flags) and not flags[0]  # the full set at the predictor misses nothing
 
 
-@pytest.mark.parametrize(("name", "cp", "ne", "x"),
-                         CASES + [pytest.param("sliding", *_sliding_pair()[:3],
-                                               id="sliding-60")])
+@pytest.mark.parametrize(("name", "cp", "ne", "x"), CASES_AND_SLIDING)
 def test_smallest_gap_is_that_of_every_pair(name, cp, ne, x):
     """The nearest-pair search after a step skips rows and chunks of points by their
     boxes: its smallest gap is still the smallest over every point pair of the
