@@ -105,9 +105,13 @@ def warm_up_pyelastica(tmp: Path) -> None:
     pyelastica(1e-4, 0.01, tmp / "pe_warm_up.csv", 1.0e7)
 
 
-def pyelastica(dt: float, t_end: float, out: Path, E: float) -> dict:
+def pyelastica(dt: float, t_end: float, out: Path, E: float, max_rows: int | None = None) -> dict:
+    """PyElastica's drop (peers/drop_pyelastica.py); ``max_rows`` the rows of its CSV at
+    most (its own default: 2000)."""
+    rows = [] if max_rows is None else ["--max-rows", str(max_rows)]
     wall, stdout = _run([sys.executable, str(PEERS / "drop_pyelastica.py"), "--dt", f"{dt:g}",
-                         "--t-end", f"{t_end:g}", "--out", str(out)], {"PEER_E": f"{E:g}"})
+                         "--t-end", f"{t_end:g}", "--out", str(out), *rows],
+                        {"PEER_E": f"{E:g}"})
     return {"code": f"PyElastica dt={dt:g}", "time": _loop_time(stdout), "process": wall,
             "csv": out}
 

@@ -62,12 +62,13 @@ def error_dofs(run: Path, splits: list[float]) -> None:
         mine = (cp >= offset) & (cp < offset + n)
         beam[mine] = name
         local[mine] = cp[mine] - offset
-    t, dt = t[1:], dt[1:]
+    start, t, dt = t[0], t[1:], dt[1:]
+    last = {name: n - 1 for name, _, n in beams}
     print("\nthe dof of the largest |a_{n+1} - a_n| (what the error estimate follows)")
     print("| window [s] | steps | median step [ms] | beam and direction (steps) | "
           "control points most often (steps) |")
     print("|---|---|---|---|---|")
-    edges = [t[0] - dt[0]] + sorted(splits) + [t[-1]]
+    edges = [start] + sorted(splits) + [t[-1]]
     for lo, hi in zip(edges[:-1], edges[1:], strict=True):
         w = (t > lo) & (t <= hi)
         if not w.any():
@@ -75,9 +76,8 @@ def error_dofs(run: Path, splits: list[float]) -> None:
         counts = collections.Counter(zip(beam[w], direction[w], strict=True))
         most = ", ".join(f"{b} {d} {n}" for (b, d), n in counts.most_common())
         points = collections.Counter(zip(beam[w], local[w], strict=True)).most_common(4)
-        last = {name: n - 1 for name, _, n in beams}
         often = ", ".join(f"{b} {k} of 0-{last[b]} ({n})" for (b, k), n in points)
-        print(f"| {max(lo, 0.0):.3g}-{hi:.3g} | {int(w.sum())} | {1e3 * np.median(dt[w]):.3f} | "
+        print(f"| {lo:.3g}-{hi:.3g} | {int(w.sum())} | {1e3 * np.median(dt[w]):.3f} | "
               f"{most} | {often} |")
 
 

@@ -50,7 +50,7 @@ HERE = Path(__file__).resolve().parent
 PEERS = HERE / "peers"
 sys.path[:0] = [str(HERE), str(PEERS)]
 from compare import drop_case  # noqa: E402
-from peers import _loop_time, _run, beamcontact_run, warm_up_pyelastica  # noqa: E402
+from peers import beamcontact_run, pyelastica, warm_up_pyelastica  # noqa: E402
 
 # the windows of the error [s]: through the first contact episode, and to t_end
 FIRST_EPISODE_END = 1.0
@@ -93,14 +93,12 @@ def _beamcontact(model: str, tol: float, t_end: float, tmp: Path) -> dict:
 
 
 def _pyelastica(dt: float, t_end: float, tmp: Path) -> dict:
-    """PyElastica's drop with a row every step, or every 1e-4 s at most (its sampling is
-    outside its step loop's time)."""
-    out = tmp / f"pe_{dt:g}.csv"
-    wall, stdout = _run([sys.executable, str(PEERS / "drop_pyelastica.py"), "--dt", f"{dt:g}",
-                         "--t-end", f"{t_end:g}", "--out", str(out), "--max-rows",
-                         str(round(t_end / max(dt, ROW_INTERVAL)) + 1)])
-    return {"setting": f"dt = {dt:g} s", "steps": round(t_end / dt),
-            "loop": _loop_time(stdout), "process": wall, "csv": out}
+    """PyElastica's drop with a row every step, or every ROW_INTERVAL at most (its sampling
+    is outside its step loop's time)."""
+    row = pyelastica(dt, t_end, tmp / f"pe_{dt:g}.csv", 1.0e7,
+                     max_rows=round(t_end / max(dt, ROW_INTERVAL)) + 1)
+    return {"setting": f"dt = {dt:g} s", "steps": round(t_end / dt), "loop": row["time"],
+            "process": row["process"], "csv": row["csv"]}
 
 
 def _windows(t_end: float) -> list[float]:
