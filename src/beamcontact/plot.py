@@ -163,10 +163,11 @@ def plot_snapshots(frames: list[tuple[float, list[np.ndarray]]], radii: list[flo
         ax.locator_params(nbins=4)
     for k, ax in enumerate(axes.ravel()[:n]):
         ax.label_outer()
-        if k + cols >= n:  # the lowest panel of its column: its x labels show
+        lowest = k + cols >= n  # the lowest panel of its column: its x labels show
+        if lowest:
             ax.tick_params(labelbottom=True)
-        ax.xaxis.set_in_layout(k + cols >= n)
-        ax.yaxis.set_in_layout(k % cols == 0)
+        ax.xaxis.set_in_layout(lowest)
+        ax.yaxis.set_in_layout(k % cols == 0)  # the first column's y labels show
         for spine in ax.spines.values():
             spine.set_in_layout(False)
     for ax in axes.ravel()[n:]:
