@@ -7,7 +7,8 @@ Runs, each in its own process, one after the other on this machine:
   E = 1e7 Pa), 2 s simulated: PyElastica at dt = 1e-4 s and at its largest stable step
   (the first of ``--pyelastica-dt-large`` times 1, 0.8, 0.8^2, ... that runs),
   Exudyn at dt = 1e-3 s, and ``beamcontact run`` (every default output written) for each
-  of ``--models``;
+  of ``--models``, with the falling beam as discretised and without the outlier modes
+  of its free ends (``--outliers``: ``beams.remove_outliers``);
 * ``stiff``: the same drop with E = 1e9 Pa, 1 s simulated (through the first impact):
   PyElastica at dt = 1e-5 s and ``beamcontact run``;
 * ``bundled``: ``beamcontact run`` of the bundled benchmark (3 s, every output), with the
@@ -44,7 +45,7 @@ minutes and not in others; the two-thread loops are fast or slow accordingly).
 
     pip install ".[peers]"                      # PyElastica and Exudyn
     python benchmarks/peers.py [--cases drop stiff bundled scaling] [--repeat 3]
-                               [--engines native jax]
+                               [--engines native jax] [--outliers keep remove]
     python benchmarks/peers.py --cases solid solid-studies [--solid-out DIR]
                                [--kratos-python PYTHON]
 
@@ -166,14 +167,16 @@ def beamcontact_run(case: Path | None, out: Path, label: str, env: dict | None =
 
 
 def _drop_case_file(model: str, t_end: float, E: float, folder: Path,
-                    engine: str = "auto") -> Path:
+                    engine: str = "auto", outliers: str = "keep") -> Path:
     import tomli_w
     from compare import drop_case
 
     case = drop_case(model, t_end=t_end, E=E)
     case["output"]["vtk_interval"] = t_end / 100  # the default cadence
     case.setdefault("solver", {})["engine"] = engine
-    path = folder / f"drop_{model}_E{E:g}_{engine}.toml"
+    # the falling beam's free ends without their outlier modes (beams.remove_outliers)
+    case["beams"][1]["remove_outliers"] = outliers == "remove"
+    path = folder / f"drop_{model}_E{E:g}_{engine}_{outliers}.toml"
     path.write_text(tomli_w.dumps(case))
     return path
 
@@ -235,10 +238,13 @@ def case_drop(tmp: Path, args, E: float = 1.0e7, t_end: float = 2.0, stiff: bool
             rows.append(exudyn(1e-3, t_end, tmp / f"ex_{E:g}.csv", E))
     for engine in args.engines:
         for model in args.models:
-            case = _drop_case_file(model, t_end, E, tmp, engine)
-            beamcontact_run(case, tmp / f"warm_{model}_{engine}", "warm-up")
-            rows.append(beamcontact_run(case, tmp / f"bc_{model}_{E:g}_{engine}",
-                                        f"beamcontact {model} ({engine})"))
+            for outliers in args.outliers:
+                case = _drop_case_file(model, t_end, E, tmp, engine, outliers)
+                name = f"{model}_{E:g}_{engine}_{outliers}"
+                beamcontact_run(case, tmp / f"warm_{name}", "warm-up")
+                extra = ", no outliers" if outliers == "remove" else ""
+                rows.append(beamcontact_run(case, tmp / f"bc_{name}",
+                                            f"beamcontact {model} ({engine}{extra})"))
     _table(f"{'stiff drop (E = 1e9 Pa)' if stiff else 'peer drop (E = 1e7 Pa)'}, "
            f"{t_end:g} s simulated", rows, t_end,
            None if stiff or t_end <= COMPARABLE_UNTIL else COMPARABLE_UNTIL)
@@ -438,6 +444,10 @@ def main() -> None:
                     help="beamcontact engines (solver.engine) of the drop cases")
     ap.add_argument("--models", nargs="+", default=["ipip-points", "cg"],
                     choices=["cg", "ipip", "ipip-points"], help="beamcontact contact models")
+    ap.add_argument("--outliers", nargs="+", default=["keep", "remove"],
+                    choices=["keep", "remove"],
+                    help="the drop cases' falling beam as discretised (keep) and with the "
+                    "outlier modes of its free ends removed (remove: beams.remove_outliers)")
     ap.add_argument("--pyelastica-dt-large", type=float, default=4e-4,
                     help="the first step tried for PyElastica's largest stable step at its "
                     "default mesh; 0.8 times shorter until it is stable [s]")

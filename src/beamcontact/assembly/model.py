@@ -75,8 +75,11 @@ class Model:
         beams: one ElementBlock per beam.
         loads: point loads (n_load may be 0).
         x_ref: reference control points of the whole model, shape (n_cp, 2).
-        free: 1.0 for free dofs, 0.0 for supported ones, shape (2 n_cp,).
+        free: 1.0 for free dofs, 0.0 for supported and tied ones, shape (2 n_cp,).
         gravity: acceleration of gravity, shape (2,).
+        tied, tie_masters, tie_weights: the dofs that free ends' outlier removal ties to
+            others (beam/free_ends.py): u[tied[t]] = sum_k tie_weights[t, k]
+            u[tie_masters[t, k]], shapes (n_t,), (n_t, 3), (n_t, 3); n_t = 0 without it.
         sparse: static; the tangent is kept as local blocks and solved by a sparse or
             banded LU (:mod:`~beamcontact.solvers.linear`) instead of a dense matrix.
     """
@@ -86,6 +89,9 @@ class Model:
     x_ref: jax.Array
     free: jax.Array
     gravity: jax.Array
+    tied: jax.Array
+    tie_masters: jax.Array
+    tie_weights: jax.Array
     sparse: bool = field(default=False, metadata=dict(static=True))
 
     @property

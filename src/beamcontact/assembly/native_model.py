@@ -58,7 +58,8 @@ class NativeModel(NamedTuple):
     """A Model (assembly/model.py) as flat arrays; layout in the module docstring.
 
     Shapes (n_el elements of all blocks, n_load loads, n_loc, n_qp, n_eta the padded
-    counts): x_ref (n_cp, 2); free (n_dof,); gravity (2,); conn (n_el, n_loc) int64;
+    counts): x_ref (n_cp, 2); free (n_dof,); gravity (2,); tied (n_t,), tie_masters
+    (n_t, 3) int64 and tie_weights (n_t, 3) (Model's); conn (n_el, n_loc) int64;
     elem_n_loc, block_index (n_el,) int64 (the element's real number of control points
     and its ElementBlock in model.beams); R, dR, ddR (n_el, n_qp, n_loc); wq, g_ref,
     K_ref (n_el, n_qp); eta, w_eta (n_el, n_eta); E, rho_area, rho_inertia, gravity_on
@@ -70,6 +71,9 @@ class NativeModel(NamedTuple):
     x_ref: np.ndarray
     free: np.ndarray
     gravity: np.ndarray
+    tied: np.ndarray
+    tie_masters: np.ndarray
+    tie_weights: np.ndarray
     conn: np.ndarray
     elem_n_loc: np.ndarray
     block_index: np.ndarray
@@ -167,6 +171,9 @@ def native_arrays(model) -> NativeModel:
     load_conn = _pad_last(np.asarray(ld.conn, dtype=np.int64), n_loc)
     return NativeModel(
         x_ref=_f64(model.x_ref), free=_f64(model.free), gravity=_f64(model.gravity),
+        tied=np.array(model.tied, dtype=np.int64).reshape(-1),
+        tie_masters=np.array(model.tie_masters, dtype=np.int64).reshape(-1, 3),
+        tie_weights=_f64(model.tie_weights).reshape(-1, 3),
         **el,
         load_conn=np.ascontiguousarray(load_conn),
         load_R=np.ascontiguousarray(_pad_last(_f64(ld.R), n_loc)),
@@ -184,6 +191,18 @@ def new_blocks(nm: NativeModel) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ compiled
+
+
+@njit
+def tie_dependent(nm, w):
+    """In place, w[tied[t]] = sum_k tie_weights[t, k] w[tie_masters[t, k]] for a
+    displacement, velocity or acceleration w (n_dof,): the free ends' constraints
+    (beam/free_ends.py), as :func:`beamcontact.assembly.system.tie_dependent`."""
+    for t in range(nm.tied.shape[0]):
+        s = 0.0
+        for k in range(nm.tie_masters.shape[1]):
+            s += nm.tie_weights[t, k] * w[nm.tie_masters[t, k]]
+        w[nm.tied[t]] = s
 
 
 @njit

@@ -168,6 +168,19 @@ def apply_supports(r: jax.Array, K, free: jax.Array):
     return r * free, linear.apply_supports(K, free)
 
 
+def tie_dependent(w: jax.Array, model: Model) -> jax.Array:
+    """w with its tied dofs set from their masters, w[tied] = sum_k tie_weights[:, k]
+    w[tie_masters[:, k]], for a displacement, velocity or acceleration (beam/free_ends.py:
+    the free ends' constraints; the solve leaves those dofs alone, as supported ones)."""
+    if model.tied.shape[0] == 0:
+        return w
+    # summed left to right, as the native twin does
+    total = jnp.zeros(model.tied.shape[0])
+    for k in range(model.tie_masters.shape[1]):
+        total = total + model.tie_weights[:, k] * w[model.tie_masters[:, k]]
+    return w.at[model.tied].set(total)
+
+
 def update_load_state(model: Model, u: jax.Array, state: LoadState) -> LoadState:
     """Rotations and tangents of the load points at the converged displacement u."""
     x = model.x_ref + u.reshape(-1, 2)

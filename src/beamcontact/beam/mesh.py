@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from beamcontact.beam.free_ends import FreeEnd, fold_rows
 from beamcontact.spline import NurbsCurve, elevate_degree, nurbs_basis_derivatives, refine_knots
 from beamcontact.spline.knots import element_breaks
 
@@ -44,6 +45,8 @@ class BeamMesh:
         R, dR, ddR: rational basis and derivatives at Gauss points, shape (n_el, n_qp, p+1).
         wq: Gauss weight times d xi / d xi_hat, shape (n_el, n_qp).
         xi_qp: parameters of the Gauss points, shape (n_el, n_qp).
+        free_ends: the ends whose outliers are removed (beam/free_ends.py); R, dR, ddR are
+            then the folded rows of the constrained space.
     """
 
     curve: NurbsCurve
@@ -54,6 +57,7 @@ class BeamMesh:
     ddR: np.ndarray
     wq: np.ndarray
     xi_qp: np.ndarray
+    free_ends: tuple[FreeEnd, ...] = ()
 
     @property
     def n_elements(self) -> int:
@@ -61,8 +65,10 @@ class BeamMesh:
         return len(self.conn)
 
 
-def build_mesh(curve: NurbsCurve, n_qp: int | None = None) -> BeamMesh:
-    """Element connectivity and basis at ``n_qp`` Gauss points per element (default p+1)."""
+def build_mesh(curve: NurbsCurve, n_qp: int | None = None,
+               free_ends: tuple[FreeEnd, ...] = ()) -> BeamMesh:
+    """Element connectivity and basis at ``n_qp`` Gauss points per element (default p+1),
+    folded into the constrained space of ``free_ends`` (:func:`fold_rows`)."""
     p = curve.degree
     n_qp = p + 1 if n_qp is None else n_qp
     x, w = np.polynomial.legendre.leggauss(n_qp)
@@ -77,9 +83,12 @@ def build_mesh(curve: NurbsCurve, n_qp: int | None = None) -> BeamMesh:
     ders = d.reshape(n_el, n_qp, 3, p + 1).transpose(2, 0, 1, 3)
     last = first.reshape(n_el, n_qp)[:, -1]
     conn = (last[:, None] + np.arange(p + 1)).astype(np.int64)
+    if free_ends:
+        # rows (n_el, n_qp, 3, p + 1) against conn (n_el, p + 1)
+        ders = fold_rows(conn, ders.transpose(1, 2, 0, 3), free_ends).transpose(2, 0, 1, 3)
     return BeamMesh(curve=curve, conn=conn, breaks=breaks, R=np.ascontiguousarray(ders[0]),
                     dR=np.ascontiguousarray(ders[1]), ddR=np.ascontiguousarray(ders[2]),
-                    wq=wq, xi_qp=xi_qp)
+                    wq=wq, xi_qp=xi_qp, free_ends=tuple(free_ends))
 
 
 def point_basis(curve: NurbsCurve, u: float) -> tuple[np.ndarray, np.ndarray]:

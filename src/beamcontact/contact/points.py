@@ -22,6 +22,7 @@ import numpy as np
 
 from beamcontact._jax import jax, jnp, model_array, pytree
 from beamcontact._x64 import as_float
+from beamcontact.beam.free_ends import fold_rows
 from beamcontact.spline import nurbs_basis_derivatives
 
 
@@ -141,7 +142,8 @@ def contact_elements(disc, segments: int, betas, beam_pairs=None, self_contact: 
         c[:, : p + 1] = mesh.conn + info.offset
         conn.append(c)
         valid.append(np.broadcast_to(np.arange(n_loc) < p + 1, (n_el, n_loc)))
-        Rs.append(R)
+        # the contact forces act in the constrained space of the mesh (beam/free_ends.py)
+        Rs.append(fold_rows(c, R, mesh.free_ends, info.offset))
         ws.append(w)
         radius.append(np.full(n_el, info.section.half_depth))
         beta.append(np.full(n_el, betas[b_idx], dtype=float))

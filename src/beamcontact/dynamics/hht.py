@@ -24,6 +24,7 @@ from beamcontact.assembly.model import LoadState, Model
 from beamcontact.assembly.system import (
     apply_supports,
     residual_tangent_with_contact,
+    tie_dependent,
     update_load_state,
 )
 from beamcontact.contact.blocks import FrozenContact
@@ -68,11 +69,11 @@ def initial_state(u0, v0, model: Model, load_state: LoadState,
                   contact: FrozenContact | None = None) -> DynState:
     """Consistent initial acceleration: F_inertia(u0, v0, a0) = -f_pot(u0) on free dofs."""
     free = model.free
-    v0 = v0 * free
+    v0 = tie_dependent(v0 * free, model)
     f_pot, _ = residual_tangent_with_contact(u0, model, 1.0, load_state, contact)
     f0, M = inertia_force_and_mass(u0, v0, jnp.zeros_like(u0), model)
     r, M = apply_supports(f0 + f_pot, M, free)
-    a0 = linear.solve(M, -r)
+    a0 = tie_dependent(linear.solve(M, -r), model)
     return DynState(jnp.asarray(0.0), u0, v0, a0, f_pot, load_state)
 
 
@@ -99,7 +100,10 @@ def hht_step(state: DynState, model: Model, dt, alpha, rtol, utol_abs, max_itera
     tol = jnp.stack([rtol, rtol * jnp.linalg.norm(state.f_pot * model.free), utol_abs]
                     + ([] if etol_abs is None else [etol_abs]))
     res = newton(residual_tangent, u_pred, max_iterations, tol, diverge_after=DIVERGE_AFTER)
-    v, a = newmark_kinematics(res.u, state.u, state.v, state.a, coeffs)
-    new = DynState(state.t + dt, res.u, v, a, res.aux,
-                   update_load_state(model, res.u, state.load_state))
+    # the free ends' tied dofs follow their masters (v and a too: their Newmark values
+    # agree only to round-off, which the acceleration's 1 / (beta h^2) amplifies)
+    u = tie_dependent(res.u, model)
+    v, a = newmark_kinematics(u, state.u, state.v, state.a, coeffs)
+    new = DynState(state.t + dt, u, tie_dependent(v, model), tie_dependent(a, model), res.aux,
+                   update_load_state(model, u, state.load_state))
     return new, res

@@ -251,7 +251,12 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
             _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
                               t_n, *args)
         last_step = step
+    # the free ends' tied dofs follow their masters (v and a too: their Newmark values
+    # agree only to round-off, which the acceleration's 1 / (beta h^2) amplifies)
+    nmod.tie_dependent(nm, u)
     _newmark(u, u_n, v_n, a_n, coeffs[0], h, coeffs[2], gamma, v, a)
+    nmod.tie_dependent(nm, v)
+    nmod.tie_dependent(nm, a)
     nmod.update_load_state(nm, u, theta_n, t_n, theta, tangent)
     e_gravity, e_ext = nmod.external_energies(nm, nmod._positions(nm.x_ref, u), 1.0, theta,
                                               tangent)
@@ -311,6 +316,7 @@ def initial_acceleration(nm, contact, u, v, theta, tangent, position, positions,
     bordered.factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, a_layout, coupled)
     for i in range(n):
         a[i] = a_layout[position[i]]
+    nmod.tie_dependent(nm, a)
 
 
 @njit
@@ -766,6 +772,7 @@ class NativeEngine:
         lay, ar = sysm.layout, sysm.arrays
         u = np.zeros(nm.n_dof)
         v = np.array(v0, dtype=np.float64) * nm.free
+        nmod.tie_dependent(nm, v)
         # zero rotation and the reference tangent at every load point
         tangent = np.einsum("lk,lkd->ld", nm.load_dR, nm.x_ref[nm.load_conn])
         theta = np.zeros(tangent.shape[0])

@@ -17,6 +17,7 @@ import numpy as np
 
 from beamcontact._jax import jax, jnp, lazy_jit, on_device
 from beamcontact._persistent import persistent_jit
+from beamcontact._x64 import require_x64
 from beamcontact.assembly.inertia import kinetic_energy_and_momentum
 from beamcontact.assembly.model import Model
 from beamcontact.assembly.system import contact_energy_of, energies
@@ -170,6 +171,7 @@ class JaxEngine:
 
     def __init__(self, model: Model, contact: ContactProblem | None, alpha: float,
                  options: NewtonOptions, length: float, dt_ref: float):
+        require_x64()  # the model moves to the device here: never in float32
         self.model, self.options = on_device(model), options
         self.contact = None if contact is None else contact.on_device()
         # host scalars as NumPy float64: strongly typed like the arrays they replace, and

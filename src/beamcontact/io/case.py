@@ -176,11 +176,29 @@ def _check_references(case: Case) -> None:
             raise CaseError(f"contact.cutoff: must exceed the sum of two radii "
                             f"({2 * min(radii)}), got {case.contact.cutoff}")
     _check_obstacles(case)
+    _check_free_ends(case)
     for i, b in enumerate(case.beams):
         r = b.section.radius if b.section.shape == "circle" else 0.5 * b.section.height
         if b.arc is not None and r >= b.arc.radius:
             raise CaseError(f"beams[{i}] ({b.name}).section: half-depth {r} must be smaller "
                             f"than the arc radius {b.arc.radius}")
+
+
+def _check_free_ends(case: Case) -> None:
+    """remove_outliers: dynamics only, and no load at an end it constrains (a force or a
+    moment there breaks the shear-free condition u''' = 0 that it imposes)."""
+    for i, b in enumerate(case.beams):
+        if not b.remove_outliers:
+            continue
+        if case.analysis.kind != "dynamic":
+            raise CaseError(f"beams[{i}] ({b.name}).remove_outliers: applies to dynamics "
+                            f"only (what it changes are the beam's highest modes)")
+        for j, load in enumerate(case.loads):
+            end = {0.0: "start", 1.0: "end"}.get(at_fraction(load.at))
+            if load.beam == b.name and end in b.unsupported_ends:
+                raise CaseError(f"loads[{j}].at: a load at the {end} of beam {b.name!r}, "
+                                f"whose remove_outliers makes that end shear-free; load "
+                                f"it inside the beam or set remove_outliers = false")
 
 
 def _check_obstacles(case: Case) -> None:

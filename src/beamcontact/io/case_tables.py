@@ -197,6 +197,7 @@ class Beam(_Strict):
     supports: list[Support] = []
     gravity: bool = True
     initial_velocity: Vec2 = [0.0, 0.0]
+    remove_outliers: bool = False
 
     @field_validator("continuity")
     @classmethod
@@ -224,7 +225,22 @@ class Beam(_Strict):
         if self.nurbs is not None and self.nurbs.degree > self.degree:
             raise ValueError(f"degree {self.degree} is below the nurbs degree "
                              f"{self.nurbs.degree}")
+        if self.remove_outliers:
+            if self.degree < 4:
+                raise ValueError(f"remove_outliers needs degree >= 4 (a cubic's end element "
+                                 f"would become a parabola), got degree {self.degree}")
+            if self.elements < 2:
+                raise ValueError("remove_outliers needs at least 2 elements")
+            if not self.unsupported_ends:
+                raise ValueError("remove_outliers applies at free ends, and both ends of "
+                                 "this beam are supported")
         return self
+
+    @property
+    def unsupported_ends(self) -> tuple[str, ...]:
+        """The ends ("start", "end") without a support."""
+        held = {s.at for s in self.supports}
+        return tuple(e for e in ("start", "end") if e not in held)
 
     @property
     def smoothness(self) -> int:

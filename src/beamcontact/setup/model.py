@@ -13,6 +13,7 @@ import numpy as np
 from beamcontact._jax import model_array
 from beamcontact._x64 import as_float
 from beamcontact.assembly.model import ElementBlock, Model, PointLoads
+from beamcontact.beam.free_ends import fold_rows, free_end
 from beamcontact.beam.mesh import BeamMesh, build_mesh, point_basis, refine_axis
 from beamcontact.beam.section import Section, circle_section, rectangle_section
 from beamcontact.io.case import Beam, Case, at_fraction
@@ -101,7 +102,12 @@ def discretize(case: Case) -> Discretization:
     for b in case.beams:
         axis = axis_curve(b)
         curve = refine_axis(axis, b.degree, b.elements, b.smoothness)
-        mesh = build_mesh(curve)
+        try:
+            ends = (tuple(free_end(curve, at) for at in b.unsupported_ends)
+                    if b.remove_outliers else ())
+        except ValueError as exc:
+            raise ValueError(f"beam {b.name!r}: {exc}") from None
+        mesh = build_mesh(curve, free_ends=ends)
         section = make_section(b)
         _, K = _reference_metric(mesh)
         if np.max(np.abs(K)) * section.half_depth >= 1.0:
@@ -156,6 +162,7 @@ def _point_loads(case: Case, disc: Discretization) -> PointLoads:
     for i, load in enumerate(case.loads):
         info = disc.beam(load.beam)
         idx, d = point_basis(info.curve, info.parameter(at_fraction(load.at)))
+        d = fold_rows(idx + info.offset, d, info.mesh.free_ends, info.offset)
         m = len(idx)
         conn[i, :m] = idx + info.offset
         R[i, :m], dR[i, :m] = d[0], d[1]
@@ -163,6 +170,21 @@ def _point_loads(case: Case, disc: Discretization) -> PointLoads:
     moment = np.array([ld.moment for ld in case.loads], float)
     return PointLoads(conn=model_array(conn), R=as_float(R), dR=as_float(dR),
                       force=as_float(force), moment=as_float(moment))
+
+
+def dependent_dofs(disc: Discretization) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The dofs that the free ends' constraints tie to others (beam/free_ends.py), in
+    global numbering: dependent (n_t,), masters (n_t, 3), weights (n_t, 3); the x and y
+    components of each end are two ties."""
+    dep, masters, weights = [], [], []
+    for info in disc.beams:
+        for end in info.mesh.free_ends:
+            for a in (0, 1):
+                dep.append(2 * (info.offset + end.dependent) + a)
+                masters.append([2 * (info.offset + m) + a for m in end.masters])
+                weights.append(end.weights)
+    return (np.array(dep, dtype=np.int64), np.array(masters, dtype=np.int64).reshape(-1, 3),
+            np.array(weights, dtype=float).reshape(-1, 3))
 
 
 def supported_dofs(case: Case, disc: Discretization) -> np.ndarray:
@@ -181,10 +203,16 @@ def build_model(case: Case, disc: Discretization | None = None) -> tuple[Model, 
     """The Model pytree for a validated case."""
     disc = discretize(case) if disc is None else disc
     x_ref = np.concatenate([b.curve.points for b in disc.beams])
+    dep, masters, weights = dependent_dofs(disc)
+    # a tied dof leaves the solve as a supported one does (free = 0)
+    held = supported_dofs(case, disc)
+    held[dep] = True
     model = Model(
         beams=_blocks(disc, case),
         loads=_point_loads(case, disc), x_ref=as_float(x_ref),
-        free=as_float(~supported_dofs(case, disc)), gravity=as_float(case.analysis.gravity),
+        free=as_float(~held), gravity=as_float(case.analysis.gravity),
+        tied=model_array(dep), tie_masters=model_array(masters),
+        tie_weights=as_float(weights),
         sparse=use_sparse(case.solver.linear_solver, x_ref.size))
     return model, disc
 

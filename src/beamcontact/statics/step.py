@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from beamcontact._jax import jax, jnp, lazy_jit, on_device, pytree
+from beamcontact._x64 import require_x64
 from beamcontact.assembly.model import LoadState, Model, initial_load_state
 from beamcontact.assembly.system import (
     apply_supports,
@@ -106,6 +107,7 @@ class JaxStatics:
 
     def __init__(self, model: Model, contact: ContactProblem | None, options: NewtonOptions,
                  length: float):
+        require_x64()  # the model moves to the device here: never in float32
         self.model, self.options = on_device(model), options
         self.contact = None if contact is None else contact.on_device()
         # no absolute residual test in statics
