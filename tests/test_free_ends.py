@@ -12,7 +12,7 @@ from beamcontact.assembly.system import potential_residual_tangent
 from beamcontact.beam.free_ends import free_end
 from beamcontact.beam.mesh import build_mesh, refine_axis
 from beamcontact.dynamics.driver import solve_dynamic
-from beamcontact.io.case import CaseError, parse_case
+from beamcontact.io.case import CaseError, ignored_keys, parse_case
 from beamcontact.setup.start import dynamic_start, prepare
 from beamcontact.solvers import linear
 from beamcontact.spline import line
@@ -196,7 +196,6 @@ def test_both_engines_swing_the_same():
     (lambda r: r["beams"][0].update(supports=[{"at": "start", "type": "pinned"},
                                               {"at": "end", "type": "clamped"}]),
      "both ends of this beam are supported"),
-    (lambda r: r["analysis"].update(kind="static"), "dynamics only"),
     (lambda r: r.update(loads=[{"beam": "b", "at": 1.0, "force": [0.0, -1.0]}]),
      "loads[0].at"),
 ])
@@ -210,19 +209,34 @@ def test_cases_it_cannot_serve_are_refused(change, key):
 @pytest.mark.parametrize("geometry, why", [
     ({"arc": {"center": [0.0, 0.0], "radius": 1.0, "start_angle": 0.0, "end_angle": 1.5}},
      "equal NURBS weights"),
-    ({"nurbs": {"degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1],
-                "points": [[0.0, 0.0], [0.3, 0.0], [0.6, 0.1], [1.0, 0.4]]}},
+    # a parabola: its third derivative is zero, but a curved free end does not have
+    # r''' = 0 once its stretch varies
+    ({"nurbs": {"degree": 2, "knots": [0, 0, 0, 1, 1, 1],
+                "points": [[0.0, 0.0], [0.5, 0.3], [1.0, 0.0]]}},
      "straight end element"),
+    # straight, but not uniformly parametrised: the reference is not in the space
+    ({"nurbs": {"degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1],
+                "points": [[0.0, 0.0], [0.1, 0.0], [0.2, 0.0], [1.0, 0.0]]}},
+     "parametrised uniformly"),
 ])
-def test_a_curved_free_end_is_refused(geometry, why):
-    """On an arc (rational) or a cubic whose third derivative is not zero at its ends, the
-    constraint would change the reference curve: a CaseError that names the beam, not a
-    silently different geometry."""
+def test_an_end_it_cannot_serve_is_refused(geometry, why):
+    """A rational, curved or non-uniformly parametrised end element: a CaseError that
+    names the beam and why, not a silently different model."""
     b = beam("hook", degree=4, elements=6, continuity=1, radius=0.01)
     b.update(geometry, remove_outliers=True)
     raw = {"analysis": {"kind": "dynamic", "t_end": 1.0, "dt": 1e-3}, "beams": [b]}
     with pytest.raises(CaseError, match=f"'hook'.*{why}"):
         prepare(parse_case(raw))
+
+
+def test_statics_ignores_it_with_a_warning():
+    """As other dynamics-only keys: one case file serves a static and a dynamic run, so
+    statics warns and builds the beam as discretised (no tie, the end point free)."""
+    case = parse_case(_case(True, kind="static", supports=[{"at": "start",
+                                                            "type": "clamped"}]))
+    assert any(w.startswith("beams[0].remove_outliers: ignored") for w in ignored_keys(case))
+    model = prepare(case).model
+    assert model.tied.shape == (0,) and np.asarray(model.free)[-2:].tolist() == [1.0, 1.0]
 
 
 def test_a_load_inside_the_end_element_is_folded():

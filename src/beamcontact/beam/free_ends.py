@@ -9,9 +9,12 @@ frequencies and modes from isogeometric discretizations of second- and fourth-or
 problems in one, two, and three dimensions", CMAME 387, 2021) remove them by conditions
 on the highest derivatives at the boundary. The condition used here is the natural one of
 an unloaded free end of a beam, shear-free: the third derivative of the displacement u
-in the spline parameter vanishes there. The continuum solution satisfies it (a free end
-carries no moment and no shear, and the axial strain at it stays zero, so its
-derivative in time does too), so the space loses its outliers and keeps the solution.
+in the spline parameter vanishes there. The continuum solution of a straight end nearly
+satisfies it (a free end carries no moment and no shear, and the axial strain at it
+stays zero, so its derivative in time does too; the rotary inertia of the section
+leaves EI w''' = rho I (w')_tt, a relative term of order (R/L)^2), so the space loses
+its outliers and keeps the solution. A curved end does not: there the deformed axis has
+r''' != 0 once its stretch varies (:func:`free_end` refuses it).
 
 With an open knot vector only N_0 .. N_3 have a non-zero third derivative at the start
 (P&T, The NURBS Book, eq. 2.10), so the constraint reads, per component,
@@ -65,9 +68,12 @@ def free_end(curve: NurbsCurve, at: str) -> FreeEnd:
     """The constraint u'''(end) = 0 at ``at`` ("start" or "end") of a refined axis.
 
     Raises ValueError for a degree below :data:`MIN_DEGREE`, for rational weights in the
-    end element (the weights above are those of the polynomial basis) and for a reference
-    that does not satisfy the constraint (a curved end element: its reference curve would
-    change)."""
+    end element (the weights above are those of the polynomial basis), for a curved end
+    element (with a curved reference the deformed axis has r''' != 0 at a free end: a
+    stretch that varies along a curved end turns its third derivative out of the
+    tangent, so the condition would not be the continuum's) and for a straight end
+    element that is not parametrised uniformly (its reference would not satisfy the
+    condition, so the constrained space would not hold the reference curve)."""
     p = curve.degree
     if p < MIN_DEGREE:
         raise ValueError(f"remove_outliers needs degree >= {MIN_DEGREE}, got {p}")
@@ -76,23 +82,30 @@ def free_end(curve: NurbsCurve, at: str) -> FreeEnd:
     xi = knots[0] if at == "start" else knots[-1]
     span = find_span(knots, p, xi)
     third = basis_derivatives(knots, p, span, xi, ORDER)[ORDER]
-    local = np.arange(span - p, span + 1)
+    local = np.arange(span - p, span + 1)  # the end element's control points
     if at == "start":
         dependent, masters = 0, (1, 2, 3)
     else:
         dependent, masters = n - 1, (n - 2, n - 3, n - 4)
     col = {int(c): k for k, c in enumerate(local)}
     weights = tuple(float(-third[col[m]] / third[col[dependent]]) for m in masters)
-    end_cps = np.arange(dependent, masters[-1] - 1, -1) if at == "end" else np.arange(4)
-    w = np.asarray(curve.weights, float)[end_cps]
+    w = np.asarray(curve.weights, float)[local]
     if np.ptp(w) > 1e-12 * np.max(w):
-        raise ValueError("remove_outliers needs equal NURBS weights at a free end")
+        raise ValueError(f"remove_outliers needs equal NURBS weights in the end element "
+                         f"(the {at} of this axis is rational)")
     x = np.asarray(curve.points, float)
-    gap = x[dependent] - sum(wk * x[m] for wk, m in zip(weights, masters, strict=True))
-    scale = np.max(np.abs(x[list(masters) + [dependent]] - x[dependent]))
-    if np.max(np.abs(gap)) > 1e-9 * scale:
+    end = x[local]
+    chord = end[-1] - end[0]
+    length = np.linalg.norm(chord)
+    off_line = np.abs(chord[0] * (end[:, 1] - end[0, 1]) - chord[1] * (end[:, 0] - end[0, 0]))
+    if np.max(off_line) > 1e-9 * length**2:
         raise ValueError(f"remove_outliers needs a straight end element (the {at} of this "
-                         f"axis is curved: its third derivative is not zero there)")
+                         f"axis is curved)")
+    gap = x[dependent] - sum(wk * x[m] for wk, m in zip(weights, masters, strict=True))
+    if np.max(np.abs(gap)) > 1e-9 * length:
+        raise ValueError(f"remove_outliers needs an end element parametrised uniformly "
+                         f"along its length (the {at} of this axis is straight, but its "
+                         f"third derivative is not zero there: give the axis as a line)")
     return FreeEnd(dependent, masters, weights)
 
 

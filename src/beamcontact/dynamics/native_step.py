@@ -267,6 +267,9 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     for i in range(n):
         da_max = max(da_max, abs((a[i] - a_n[i]) * nm.free[i]))
         forces += abs(f_pot_n[i] * nm.free[i]) + abs(f_pot[i] * nm.free[i])
+    # a tied end point is a control point of the curve like the others: its error counts
+    for t in range(nm.tied.shape[0]):
+        da_max = max(da_max, abs(a[nm.tied[t]] - a_n[nm.tied[t]]))
     values[:] = 0.0
     values[V_RESIDUAL], values[V_RESIDUAL0], values[V_H] = rn, norm0, h
     values[V_ERROR] = h * h * abs(beta - 1.0 / 6.0) * da_max

@@ -185,14 +185,12 @@ def _check_references(case: Case) -> None:
 
 
 def _check_free_ends(case: Case) -> None:
-    """remove_outliers: dynamics only, and no load at an end it constrains (a force or a
-    moment there breaks the shear-free condition u''' = 0 that it imposes)."""
-    for i, b in enumerate(case.beams):
-        if not b.remove_outliers:
+    """remove_outliers (dynamics; ignored in statics, :func:`ignored_keys`): no load at an
+    end it constrains (a force or a moment there breaks the shear-free condition
+    u''' = 0 that it imposes)."""
+    for b in case.beams:
+        if not b.remove_outliers or case.analysis.kind != "dynamic":
             continue
-        if case.analysis.kind != "dynamic":
-            raise CaseError(f"beams[{i}] ({b.name}).remove_outliers: applies to dynamics "
-                            f"only (what it changes are the beam's highest modes)")
         for j, load in enumerate(case.loads):
             end = {0.0: "start", 1.0: "end"}.get(at_fraction(load.at))
             if load.beam == b.name and end in b.unsupported_ends:
@@ -248,6 +246,11 @@ def ignored_keys(case: Case) -> list[str]:
     unused = ({"t_end", "dt", "dt_min", "alpha"} if an.kind == "static" else {"load_steps"})
     for key in sorted(unused & given):
         found.append(f"analysis.{key}: ignored in a {an.kind} analysis")
+    if an.kind == "static":
+        for i, b in enumerate(case.beams):
+            if b.remove_outliers:
+                found.append(f"beams[{i}].remove_outliers: ignored in a static analysis "
+                             f"(it removes modes, which statics does not have)")
     return found
 
 

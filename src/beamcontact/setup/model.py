@@ -103,8 +103,9 @@ def discretize(case: Case) -> Discretization:
         axis = axis_curve(b)
         curve = refine_axis(axis, b.degree, b.elements, b.smoothness)
         try:
+            # modes are a matter of dynamics: statics ignores the key (io/case.py)
             ends = (tuple(free_end(curve, at) for at in b.unsupported_ends)
-                    if b.remove_outliers else ())
+                    if b.remove_outliers and case.analysis.kind == "dynamic" else ())
         except ValueError as exc:
             raise ValueError(f"beam {b.name!r}: {exc}") from None
         mesh = build_mesh(curve, free_ends=ends)
