@@ -71,6 +71,18 @@ def other(x):
 '''
 
 
+# Python that lists in ``compiles`` the names of the functions compiled from then on
+_COMPILED_NAMES = '''
+import numba.core.event
+compiles = []
+class Names(numba.core.event.Listener):
+    def on_start(self, ev):
+        compiles.append(ev.data["dispatcher"].py_func.__name__)
+    def on_end(self, ev):
+        pass
+numba.core.event.register("numba:compile", Names())
+'''
+
 
 def _kernels_module(tmp_path, extra: str = "") -> str:
     """Write the test kernels (and ``extra``) as a module of the package into tmp_path
@@ -116,6 +128,74 @@ print(_native.OPTIMISE_OUTERMOST_ONLY, after["skipped"] - before["skipped"],
     assert int(skipped) >= 1 and int(run) >= 1, out  # terms' library skipped, outer's ran
     assert via_outer == direct == python
 
+
+
+def test_a_kernel_compiled_inside_another_has_no_machine_code_of_its_own():
+    """``terms`` compiled inside ``outer`` keeps its LLVM IR alone, linked into
+    ``outer``'s library (_native._inner_without_machine_code): its dispatcher holds that
+    version for compiles that call it, and a call of ``terms`` from Python compiles it
+    whole (a version with code) instead of jumping to a null entry point; so does a
+    later compile that calls it not. Every result is Python's bit for bit."""
+    out = _python(_KERNELS + _COMPILED_NAMES + '''
+x = np.linspace(-3.0, 5.0, 33) ** 3
+via_outer = outer(x)
+linked = [lib for lib in next(iter(outer.overloads.values())).library._linking_libraries
+          if getattr(lib, "without_code", False)]
+held = [int(getattr(r.library, "without_code", False)) for r in terms.overloads.values()]
+via_other = other(x)  # typed against the version without code: no compile of terms
+direct = terms(x)
+print(_native.INNER_WITHOUT_MACHINE_CODE, len(linked), held, compiles.count("terms"),
+      via_outer.hex(), (0.5 * via_other).hex(), direct.hex(), terms.py_func(x).hex(),
+      [int(getattr(r.library, "without_code", False)) for r in terms.overloads.values()])
+''')
+    hooked, linked, held, terms_compiles, via_outer, via_other, direct, python, after = \
+        out.split()
+    assert hooked == "True"  # with the Numba this package supports, the hook is in place
+    assert int(linked) >= 1, out  # terms' library, IR alone, linked into outer's
+    assert held == "[1]"  # its version without code, for compiles that call it
+    assert terms_compiles == "2"  # inside outer, then whole for the call from Python
+    assert after == "[0]"  # the version the Python call got has machine code
+    assert via_outer == via_other == direct == python
+
+
+def test_a_kernel_compiled_for_linking_is_not_called_and_has_no_machine_code():
+    """``_native.compile_for_linking(terms, x)`` compiles ``terms`` for x's types as a
+    callee (no module passes, no machine code), without calling it; ``outer``, compiled
+    next, links that version (``terms`` is not compiled again), and a call of ``terms``
+    from Python compiles it whole. Every result is Python's bit for bit."""
+    out = _python(_KERNELS + _COMPILED_NAMES + '''
+x = np.linspace(-1.0, 4.0, 19) ** 3
+before = _native.MODULE_PASSES["skipped"]
+_native.compile_for_linking(terms, x)
+held = [int(getattr(r.library, "without_code", False)) for r in terms.overloads.values()]
+skipped = _native.MODULE_PASSES["skipped"] - before
+via_outer = outer(x)
+after_outer = compiles.count("terms")
+direct = terms(x)
+print(held, skipped, after_outer, compiles.count("terms"), via_outer.hex(), direct.hex(),
+      terms.py_func(x).hex())
+''')
+    held, skipped, after_outer, terms_compiles, via_outer, direct, python = out.split()
+    assert held == "[1]" and int(skipped) >= 1, out  # no module passes, no machine code
+    assert after_outer == "1"  # outer linked it
+    assert terms_compiles == "2"  # then whole for the call from Python
+    assert via_outer == direct == python
+
+def test_a_version_without_machine_code_links_from_the_cache_and_python_compiles_whole(
+        tmp_path):
+    """The disk cache keeps ``terms``' IR alone when it was compiled inside ``outer``:
+    another compile (``other``) links it from the cache and computes what Python does,
+    and a call of ``terms`` from Python in a process that loaded that version for
+    ``other`` compiles it whole rather than run it (no code to run)."""
+    prelude, cache = _kernels_module(tmp_path), str(tmp_path / "cache")
+    x = "np.linspace(-2.0, 7.0, 17) ** 3"
+    assert _python(prelude + f"print(k.outer({x}).hex() == k.terms.py_func({x}).hex())",
+                   cache) == "True"
+    out = _python(prelude + f"a = k.other({x}); hits = sum(k.terms.stats.cache_hits.values())"
+                  f"\nb = k.terms({x})\nprint(a.hex() == (2.0 * k.terms.py_func({x})).hex(),"
+                  " hits, b.hex() == k.terms.py_func(" + x + ").hex(),"
+                  " sum(k.terms.stats.cache_misses.values()))", cache)
+    assert out == "True 1 True 1", out  # linked from the cache; then compiled whole
 
 
 _SHAPE_ERRORS = """

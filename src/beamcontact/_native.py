@@ -371,6 +371,107 @@ def _optimise_outermost_only() -> bool:
 OPTIMISE_OUTERMOST_ONLY = _optimise_outermost_only()
 
 
+def _inner_without_machine_code() -> bool:
+    """Generate no machine code for a library whose module passes were skipped
+    (:func:`_optimise_outermost_only`): a kernel compiled inside another compile, whose
+    code only the outermost library runs (its LLVM IR linked into that library,
+    optimised and compiled there). Returns whether the hooks are in place.
+
+    Numba turns every library it finalises into machine code (MCJIT), also a callee's
+    that nothing calls: in a cold start of the bundled benchmark that was 3.7 s of the
+    run's compile and 3.2 s of its helper's (session 36, benchmarks/README.md). Such a
+    library now keeps its IR alone and is marked ``without_code``; its entry point is a
+    null pointer that nothing may call. So:
+
+    - the dispatcher keeps such a version for the compiles that call the kernel (they
+      are typed against it and link its IR) but not in its table for calls from Python:
+      a call from Python outside a compile drops it and compiles the kernel whole (or
+      loads a whole version from the cache);
+    - the disk cache stores its IR with an empty object file (as a partial version,
+      :func:`_cached_whole`); loaded, it is again a library without code, which only a
+      compile that links it uses;
+    - its environment (Numba's ``NumbaEnv`` global) is not set: as in a kernel loaded
+      from the cache, only the outermost library's is.
+
+    The machine code that runs is the outermost library's, and every result is the same
+    bit for bit (IEEE arithmetic at every level; tests/test_native_compile.py). The code
+    is not the same bytes, though: code generation rewrites a library's IR in place
+    (LLVM's CodeGenPrepare and its neighbours), and the callers used to link that
+    rewritten IR; the loop now takes 1.5-4 % longer warm (session 36). Without the Numba
+    internals this relies on, nothing changes."""
+    try:
+        from numba.core import codegen
+        from numba.core.compiler_lock import global_compiler_lock
+        from numba.core.dispatcher import Dispatcher, _DispatcherBase
+        from numba.core.sigutils import normalize_signature
+        library_class = codegen.CPUCodeLibrary
+        finalize = library_class._finalize_final_module
+        serialize = library_class.serialize_using_object_code
+        set_env = codegen.JITCPUCodegen.set_env
+        add_overload = _DispatcherBase.add_overload
+        compile_signature = Dispatcher.compile
+        library_class._finalize_dynamic_globals  # noqa: B018
+        library_class._verify_declare_only_symbols  # noqa: B018
+    except (ImportError, AttributeError):
+        return False
+
+    def finalize_without_code(library):
+        if not getattr(library, "module_passes_skipped", False):
+            finalize(library)
+            return
+        library._finalize_dynamic_globals()
+        library._verify_declare_only_symbols()
+        library.without_code = True
+        library._finalized = True
+
+    def serialize_ir_alone(library):
+        if getattr(library, "without_code", False):
+            return (library.name, "object",
+                    (b"", library._get_module_for_linking().as_bitcode()))
+        return serialize(library)
+
+    def set_env_where_defined(codegen_self, env_name, env):
+        if codegen_self._engine.get_global_value_address(env_name):
+            set_env(codegen_self, env_name, env)
+
+    def add_overload_for_compiles(dispatcher, result):
+        if getattr(result.library, "without_code", False):
+            dispatcher.overloads[tuple(result.signature.args)] = result
+        else:
+            add_overload(dispatcher, result)
+
+    def compile_with_code(dispatcher, sig):
+        with global_compiler_lock:  # _COMPILING is read under the lock compiles hold
+            if not _COMPILING:
+                args = tuple(normalize_signature(sig)[0])
+                found = dispatcher.overloads.get(args)
+                if found is not None and getattr(found.library, "without_code", False):
+                    del dispatcher.overloads[args]
+            return compile_signature(dispatcher, sig)
+
+    library_class._finalize_final_module = finalize_without_code
+    library_class.serialize_using_object_code = serialize_ir_alone
+    codegen.JITCPUCodegen.set_env = set_env_where_defined
+    _DispatcherBase.add_overload = add_overload_for_compiles
+    Dispatcher.compile = compile_with_code
+    return True
+
+
+def compile_for_linking(kernel, *args) -> None:
+    """Compile ``kernel`` for the types of ``args`` as a compile inside another compiles
+    it (LLVM's module passes skipped, no machine code: :func:`_optimise_outermost_only`,
+    :func:`_inner_without_machine_code`), without calling it: for a process that
+    compiles a kernel only so that a later compile, its own or another process's
+    through the disk cache, links it (beamcontact/_warmup.py). A call from Python later
+    compiles the kernel whole."""
+    signature = tuple(kernel.typeof_pyval(a) for a in args)
+    _COMPILING.append(True)  # as if inside a compile of ours
+    try:
+        kernel.compile(signature)
+    finally:
+        _COMPILING.pop()
+
+
 def elf_global_symbols(object_code: bytes) -> set[str] | None:
     """The names of the global and weak symbols that a little-endian ELF64 object file
     defines (those a JIT can resolve), from its symbol table; None for any other file."""
@@ -417,6 +518,12 @@ def _load_without_bitcode() -> bool:
 
     def unserialize_lazily(cls, jit, state):
         name, kind, data = state
+        if kind == "object" and data[0] == b"":  # IR alone (_inner_without_machine_code)
+            library = jit.create_library(name)
+            library.bitcode_unparsed = data[1]
+            library.without_code = True
+            library._finalized = True
+            return library
         names = elf_global_symbols(data[0]) if kind == "object" else None
         if names is None:
             return unserialize(cls, jit, state)
@@ -441,6 +548,9 @@ def _load_without_bitcode() -> bool:
 
 
 LOAD_WITHOUT_BITCODE = _load_without_bitcode()
+# (a library without code loads only through the hook above)
+INNER_WITHOUT_MACHINE_CODE = (OPTIMISE_OUTERMOST_ONLY and LOAD_WITHOUT_BITCODE
+                              and _inner_without_machine_code())
 
 
 def _load_without_refresh(cache):
@@ -492,27 +602,13 @@ def _typed_without_constants(dispatcher):
     return dispatcher
 
 
-# set by :func:`load_partial_for_python`
-_partial_for_python = False
-
-
-def load_partial_for_python() -> None:
-    """From now on in this process, a call from Python loads a kernel's partial version
-    from the cache as it is (:func:`_cached_whole`) instead of compiling it whole: for
-    the steps a cold run makes while a helper compiles the time loop
-    (beamcontact/_warmup.py), with the attempt the helper compiled inside another
-    compile. As fast there: the bundled benchmark's steps from the driver's host loop
-    took 9.5 s with the partial attempt and 9.6 s with one compiled whole (session 23)."""
-    global _partial_for_python
-    _partial_for_python = True
-
-
 def _cached_whole(dispatcher):
     """``dispatcher``, whose compiled versions that skipped LLVM's module passes
     (:func:`_optimise_outermost_only`) are loaded from the disk cache only into another
     compile, never for a call from Python.
 
-    Such a version is written to the cache as any other, and a file
+    Such a version is written to the cache as any other (its LLVM IR alone, no machine
+    code: :func:`_inner_without_machine_code`), and a file
     ``partial-<key>`` beside it says that it is partial; a version compiled whole for
     the same signature replaces it and removes the file. A call from Python (no compile in
     progress) that would load a partial version compiles the kernel whole instead (and
@@ -566,9 +662,13 @@ def _cached_whole(dispatcher):
     load_unrefreshed = _load_without_refresh(cache)
 
     def load_whole_for_python(signature, target_context):
-        if not _COMPILING and not _partial_for_python and partial_file(signature).exists():
+        if not _COMPILING and partial_file(signature).exists():
             return None  # a call from Python: compile it whole
-        return load_unrefreshed(signature, target_context)
+        found = load_unrefreshed(signature, target_context)
+        if found is not None and not _COMPILING and getattr(found.library, "without_code",
+                                                            False):
+            return None  # no machine code to call (its partial mark was lost)
+        return found
 
     def load_or_claim(signature, target_context):
         found = load_whole_for_python(signature, target_context)
@@ -577,8 +677,7 @@ def _cached_whole(dispatcher):
         claim = kernel_file(dispatcher, "compiling", signature)
         inside = bool(_COMPILING)  # this compile will be a partial version
         if not _compile_claims.take(claim, partial=inside):
-            if not inside and not _partial_for_python \
-                    and _compile_claims.held_for_partial(claim):
+            if not inside and _compile_claims.held_for_partial(claim):
                 return None  # another's partial version would not do: compile it whole
             _compile_claims.wait(claim)  # another process compiles it
             found = load_whole_for_python(signature, target_context)

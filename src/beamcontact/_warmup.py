@@ -365,7 +365,12 @@ RUN_HELPS = ("_residual_tangent", "newton_update", "after_step", "step_set_at")
 
 def _kernel_calls(engine, state) -> dict:
     """The loop's kernels by name, each as a call on the engine's model with the types
-    the loop passes (HELPER_ORDER, HELPER_AFTER, RUN_HELPS)."""
+    the loop passes (HELPER_ORDER, HELPER_AFTER, RUN_HELPS). Those that Python never
+    calls in a run (the contact blocks, the solver's update, the HHT residual with and
+    without its tangent: the attempt calls them) are compiled for linking only
+    (:func:`~beamcontact._native.compile_for_linking`: no module passes, no machine code;
+    2-6 s of a cold start, session 36); the attempt and the contact set's kernels, which
+    the steps made without the loop call from Python, are called."""
     import numpy as np
 
     from beamcontact.assembly import native_model as nmod
@@ -393,15 +398,17 @@ def _kernel_calls(engine, state) -> dict:
     out = [np.empty(n) for _ in range(4)] + [
         np.empty_like(s.load_state.theta), np.empty_like(s.load_state.tangent),
         np.empty(len(VALUES)), np.empty(len(COUNTS), np.int64)]
+    link = _native.compile_for_linking
     return {
-        "contact_blocks": lambda: ns.contact_blocks(
-            x, *frozen, 1.0, sysm.position, band, B, C, D, lay.kl, lay.ku, r_pot, r),
-        "newton_update": lambda: bordered.newton_update(
-            band, B, C, D, lay.kl, lay.ku, ar.ipiv, ar.ipiv_s, sysm.position, r_layout, du,
-            s.u.copy(), False),
-        "_residual_tangent": lambda: ns._residual_tangent(
-            nm, frozen, *history, *system, r, r_pot, r_layout, blocks),
-        "_residual": lambda: ns._residual(nm, frozen, *history, r, r_pot, blocks),
+        "contact_blocks": lambda: link(
+            ns.contact_blocks, x, *frozen, 1.0, sysm.position, band, B, C, D, lay.kl,
+            lay.ku, r_pot, r),
+        "newton_update": lambda: link(
+            bordered.newton_update, band, B, C, D, lay.kl, lay.ku, ar.ipiv, ar.ipiv_s,
+            sysm.position, r_layout, du, s.u.copy(), False),
+        "_residual_tangent": lambda: link(
+            ns._residual_tangent, nm, frozen, *history, *system, r, r_pot, r_layout, blocks),
+        "_residual": lambda: link(ns._residual, nm, frozen, *history, r, r_pot, blocks),
         "attempt": lambda: ns.attempt(
             nm, frozen, sysm.position, sysm.block_positions, sysm.free, band, B, C, D,
             ar.ipiv, ar.ipiv_s, lay.kl, lay.ku, s.u, s.v, s.a, s.f_pot, s.load_state.theta,

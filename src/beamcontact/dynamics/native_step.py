@@ -635,7 +635,6 @@ class NativeEngine:
             return self._looked[1]
         compiling = _warmup.steps_meanwhile()
         if compiling:
-            _native.load_partial_for_python()  # the helper's attempt, as it is
             if self._meanwhile_since is None:  # after the wait for the helper's attempt
                 self._meanwhile_since = time.perf_counter()
             _warmup.release_if_long(now - self._meanwhile_since, done)
