@@ -371,6 +371,13 @@ def _optimise_outermost_only() -> bool:
 OPTIMISE_OUTERMOST_ONLY = _optimise_outermost_only()
 
 
+def _mark_without_code(library) -> None:
+    """Mark ``library`` finalised without machine code (its IR alone, for linking:
+    :func:`_inner_without_machine_code`)."""
+    library.without_code = True
+    library._finalized = True
+
+
 def _inner_without_machine_code() -> bool:
     """Generate no machine code for a library whose module passes were skipped
     (:func:`_optimise_outermost_only`): a kernel compiled inside another compile, whose
@@ -421,8 +428,7 @@ def _inner_without_machine_code() -> bool:
             return
         library._finalize_dynamic_globals()
         library._verify_declare_only_symbols()
-        library.without_code = True
-        library._finalized = True
+        _mark_without_code(library)
 
     def serialize_ir_alone(library):
         if getattr(library, "without_code", False):
@@ -521,8 +527,7 @@ def _load_without_bitcode() -> bool:
         if kind == "object" and data[0] == b"":  # IR alone (_inner_without_machine_code)
             library = jit.create_library(name)
             library.bitcode_unparsed = data[1]
-            library.without_code = True
-            library._finalized = True
+            _mark_without_code(library)
             return library
         names = elf_global_symbols(data[0]) if kind == "object" else None
         if names is None:
