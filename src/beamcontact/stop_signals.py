@@ -7,11 +7,20 @@ these signals into :class:`Terminated`, a ``KeyboardInterrupt``, raised in the m
 where the runner already handles Ctrl-C; later ones are ignored until the run has written
 what it holds. The exit code is then 128 + the signal's number (143 for SIGTERM, 129 for
 SIGHUP), as a shell reports a process the signal killed.
+
+:func:`interrupts_kept` (around the step loop, and inside :func:`stop_signals_interrupt`)
+keeps an interrupt that Python would drop: a signal's handler runs at the next bytecode
+boundary of the main thread, which can lie inside a garbage-collection callback (JAX
+registers one that runs at every collection) or a finalizer, where Python prints the
+KeyboardInterrupt as "Exception ignored" and goes on; the run would not stop at Ctrl-C,
+nor at a scheduler's SIGTERM at all. Such an interrupt is kept and raised again where
+the step loop next hands over its steps.
 """
 
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -62,9 +71,11 @@ def stopped_by(exc: KeyboardInterrupt) -> str:
 
 @contextmanager
 def stop_signals_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM and SIGHUP raise :class:`Terminated` (the first one; later
-    ones are ignored); the earlier handlers come back after it. Outside the main thread,
-    where Python cannot set handlers, nothing changes."""
+    """Within the block, SIGTERM and SIGHUP raise :class:`Terminated` (the first one;
+    later ones are ignored); the earlier handlers come back after it. One that Python
+    drops is kept (:func:`interrupts_kept`) for the step loop to raise; one still kept
+    when the block ends is let go (the work it was to stop has ended). Outside the main
+    thread, where Python cannot set handlers, nothing changes."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -79,7 +90,58 @@ def stop_signals_interrupt() -> Iterator[None]:
 
     previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
     try:
-        yield
+        with interrupts_kept(raise_at_end=False):
+            yield
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
+
+
+# the interrupt that Python dropped while a block of interrupts_kept was open, not yet
+# raised again (at most one: a later one replaces it)
+_DROPPED: list[KeyboardInterrupt] = []
+
+
+def raise_dropped() -> None:
+    """Raise the interrupt that Python dropped (:func:`interrupts_kept`), if any."""
+    if _DROPPED:
+        raise _DROPPED.pop().with_traceback(None)
+
+
+@contextmanager
+def interrupts_kept(*, raise_at_end: bool = True) -> Iterator[None]:
+    """Within the block, a KeyboardInterrupt (Ctrl-C, or :class:`Terminated`) that Python
+    drops in the main thread, raised inside a garbage-collection callback or a finalizer
+    and handed to ``sys.unraisablehook``, is kept and raised again by
+    :func:`raise_dropped` (called where an interrupt may stop the work: the step loop
+    calls it after handing over each batch of steps), or when the block ends (unless not
+    ``raise_at_end``: then it is let go; a block ending with an error lets it go too).
+    Raising it from the hook is no use: anything raised there is dropped too, and a
+    simulated signal would be handled before the hook returns. Any other unraisable error
+    goes to the earlier hook, which comes back after the block. Blocks nest (one dropped
+    in the outer block is raised by the inner one). Outside the main thread nothing
+    changes. ``tests/test_stop_signals.py``."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        exc = unraisable.exc_value
+        if isinstance(exc, KeyboardInterrupt) and \
+                threading.current_thread() is threading.main_thread():
+            _DROPPED[:] = [exc]
+        else:
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    except BaseException:
+        _DROPPED.clear()  # the block ends with an error or an interrupt of its own
+        raise
+    finally:
+        sys.unraisablehook = previous
+    if raise_at_end:
+        raise_dropped()
+    _DROPPED.clear()

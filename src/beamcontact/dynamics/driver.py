@@ -39,7 +39,10 @@ call and hands the accepted ones back to :func:`solve_dynamic` in order. The rul
 
 A step that would have to be shorter than ``dt_min`` (or more than ``max_cutbacks``
 attempts at one step) stops the run with a message; every accepted step has gone to
-``on_step`` before, also when the run is interrupted (Ctrl-C) inside a compiled loop.
+``on_step`` before, also when the run is interrupted (Ctrl-C) inside a compiled loop; an
+interrupt that lands in a garbage-collection callback is not lost
+(:func:`beamcontact.stop_signals.interrupts_kept`: raised after the next batch of
+steps is handed over).
 """
 
 from __future__ import annotations
@@ -94,7 +97,7 @@ from beamcontact.dynamics.report import (
     Attempt,
     Overflow,
 )
-from beamcontact.stop_signals import interrupt_of
+from beamcontact.stop_signals import interrupt_of, interrupts_kept, raise_dropped
 
 if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
     from beamcontact.contact.broadphase import SearchCapacity
@@ -318,11 +321,11 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
         if on_step is not None:
             for s in batch.steps():
                 on_step(s)
+        raise_dropped()  # an interrupt dropped in a garbage-collection callback
 
-    if getattr(engine, "runs_loop", False):
-        state, stopped, first_s = _compiled_loop(engine, state, ctl, limits, emit, first)
-    else:
-        state, stopped, first_s = _host_loop(engine, state, ctl, limits, emit, first)
+    loop = _compiled_loop if getattr(engine, "runs_loop", False) else _host_loop
+    with interrupts_kept():
+        state, stopped, first_s = loop(engine, state, ctl, limits, emit, first)
     status, message = ("completed", f"reached t = {ctl[T]:.6g} s in "
                                     f"{step0 + int(ctl[STEPS])} steps") \
         if stopped is None else ("failed", _failure(stopped, ctl, limits))
