@@ -97,15 +97,22 @@ def stop_signals_interrupt() -> Iterator[None]:
             signal.signal(s, h)
 
 
-# the interrupt that Python dropped while a block of interrupts_kept was open, not yet
-# raised again (at most one: a later one replaces it)
+# the interrupt that Python dropped in the main thread while a block of interrupts_kept
+# was open there, not yet raised again (at most one: a later one replaces it); and how
+# many such blocks are open. Only the main thread reads or writes them.
 _DROPPED: list[KeyboardInterrupt] = []
+_OPEN = [0]
+
+
+def _in_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
 
 
 def raise_dropped() -> None:
-    """Raise the interrupt that Python dropped (:func:`interrupts_kept`), if any."""
-    if _DROPPED:
-        raise _DROPPED.pop().with_traceback(None)
+    """Raise the interrupt that Python dropped (:func:`interrupts_kept`), if any, in the
+    main thread (where signals are handled); elsewhere nothing happens."""
+    if _DROPPED and _in_main_thread():
+        raise _DROPPED.pop()
 
 
 @contextmanager
@@ -113,35 +120,40 @@ def interrupts_kept(*, raise_at_end: bool = True) -> Iterator[None]:
     """Within the block, a KeyboardInterrupt (Ctrl-C, or :class:`Terminated`) that Python
     drops in the main thread, raised inside a garbage-collection callback or a finalizer
     and handed to ``sys.unraisablehook``, is kept and raised again by
-    :func:`raise_dropped` (called where an interrupt may stop the work: the step loop
-    calls it after handing over each batch of steps), or when the block ends (unless not
+    :func:`raise_dropped` (called where an interrupt may stop the work: the step loops
+    call it after handing over accepted steps), or when the block ends (unless not
     ``raise_at_end``: then it is let go; a block ending with an error lets it go too).
     Raising it from the hook is no use: anything raised there is dropped too, and a
     simulated signal would be handled before the hook returns. Any other unraisable error
-    goes to the earlier hook, which comes back after the block. Blocks nest (one dropped
-    in the outer block is raised by the inner one). Outside the main thread nothing
-    changes. ``tests/test_stop_signals.py``."""
-    if threading.current_thread() is not threading.main_thread():
+    goes to the earlier hook, which comes back after the block (unless the block set
+    another); outside the block the hook only passes everything on. Blocks nest (one
+    dropped in the outer block is raised by the inner one); the outermost starts with
+    none kept. Outside the main thread nothing changes. ``tests/test_stop_signals.py``."""
+    if not _in_main_thread():
         yield
         return
-    previous = sys.unraisablehook
+    if _OPEN[0] == 0:
+        _DROPPED.clear()
+    previous, open_ = sys.unraisablehook, [True]
 
     def hook(unraisable) -> None:
         exc = unraisable.exc_value
-        if isinstance(exc, KeyboardInterrupt) and \
-                threading.current_thread() is threading.main_thread():
-            _DROPPED[:] = [exc]
+        if open_[0] and isinstance(exc, KeyboardInterrupt) and _in_main_thread():
+            _DROPPED[:] = [exc.with_traceback(None)]
         else:
             previous(unraisable)
 
     sys.unraisablehook = hook
+    _OPEN[0] += 1
+    ended = False
     try:
         yield
-    except BaseException:
-        _DROPPED.clear()  # the block ends with an error or an interrupt of its own
-        raise
+        ended = True
     finally:
-        sys.unraisablehook = previous
-    if raise_at_end:
-        raise_dropped()
-    _DROPPED.clear()
+        open_[0] = False
+        if sys.unraisablehook is hook:
+            sys.unraisablehook = previous
+        _OPEN[0] -= 1
+        if not (ended and raise_at_end):
+            _DROPPED.clear()
+    raise_dropped()

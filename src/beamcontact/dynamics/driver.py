@@ -47,6 +47,7 @@ steps is handed over).
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -321,7 +322,8 @@ def solve_dynamic(engine: Engine, state, t_end: float, length: float, control: S
         if on_step is not None:
             for s in batch.steps():
                 on_step(s)
-        raise_dropped()  # an interrupt dropped in a garbage-collection callback
+        if sys.exc_info()[1] is None:  # not over an error already on its way out
+            raise_dropped()  # an interrupt dropped in a garbage-collection callback
 
     loop = _compiled_loop if getattr(engine, "runs_loop", False) else _host_loop
     with interrupts_kept():

@@ -8,8 +8,10 @@ times in a row; after a success the increment grows back (doubling) to the nomin
 This is the time stepping's controller (dynamics/control.py: its state vector,
 ``count_rejection``, ``next_step``) with the load factor as time and no error
 estimate. Every converged step is handed to ``on_step`` at once, so a later failure
-loses nothing. The loop holds no JAX: an engine (:class:`StaticEngine`; the JAX one is
-:class:`~beamcontact.statics.step.JaxStatics`) makes the attempts.
+loses nothing (nor does an interrupt that lands in a garbage-collection callback:
+:func:`beamcontact.stop_signals.interrupts_kept`). The loop holds no JAX: an engine
+(:class:`StaticEngine`; the JAX one is :class:`~beamcontact.statics.step.JaxStatics`)
+makes the attempts.
 
 Before the first step, a model whose supports leave some beam free to move rigidly is
 checked for a singular tangent (statics/restraint.py): if neither supports nor contact
@@ -38,6 +40,7 @@ from beamcontact.dynamics.control import (
     next_step,
 )
 from beamcontact.dynamics.report import Overflow
+from beamcontact.stop_signals import interrupts_kept, raise_dropped
 
 if TYPE_CHECKING:  # names for annotations only: the loop itself imports no JAX
     from beamcontact.contact.broadphase import SearchCapacity
@@ -120,6 +123,14 @@ def solve_static(engine: StaticEngine, load_steps: int, max_cutbacks: int = 12,
         beam_names: the beams' names in model order, for the message when the supports
             leave a beam free (None: beams are named by number and control points).
     """
+    with interrupts_kept():  # none dropped in a garbage-collection callback
+        return _ramp(engine, load_steps, max_cutbacks, on_step, capacity, beam_names)
+
+
+def _ramp(engine: StaticEngine, load_steps: int, max_cutbacks: int,
+          on_step: Callable[[StaticStep], None] | None, capacity: int | SearchCapacity,
+          beam_names: Sequence[str] | None) -> StaticResult:
+    """The load stepping of :func:`solve_static`."""
     contact = engine.contact
     loop = _LoadLoop(engine, engine.initial(), 1.0 / load_steps,
                      None if contact is None else contact.first_capacity(capacity),
@@ -153,6 +164,7 @@ def solve_static(engine: StaticEngine, load_steps: int, max_cutbacks: int = 12,
             values = engine.values(loop.state, loop.lam, loop.cs)
             on_step(StaticStep(loop.steps, loop.lam, engine.displacement(loop.state),
                                res.iterations, int(loop.ctl[CUTBACKS]), values))
+        raise_dropped()
         # no error estimate in statics: the increment grows back after every converged step
         loop.dlam = next_step(loop.dlam, 0.0, 0.0, loop.nominal, False, 0)
     return loop.result("completed", f"reached load factor 1 in {loop.steps} steps")
