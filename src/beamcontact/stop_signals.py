@@ -69,6 +69,10 @@ def stopped_by(exc: KeyboardInterrupt) -> str:
     return exc.name if isinstance(exc, Terminated) else "the user"
 
 
+def _in_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
 @contextmanager
 def stop_signals_interrupt() -> Iterator[None]:
     """Within the block, SIGTERM and SIGHUP raise :class:`Terminated` (the first one;
@@ -76,7 +80,7 @@ def stop_signals_interrupt() -> Iterator[None]:
     drops is kept (:func:`interrupts_kept`) for the step loop to raise; one still kept
     when the block ends is let go (the work it was to stop has ended). Outside the main
     thread, where Python cannot set handlers, nothing changes."""
-    if threading.current_thread() is not threading.main_thread():
+    if not _in_main_thread():
         yield
         return
     fired: list[int] = []
@@ -102,10 +106,6 @@ def stop_signals_interrupt() -> Iterator[None]:
 # many such blocks are open. Only the main thread reads or writes them.
 _DROPPED: list[KeyboardInterrupt] = []
 _OPEN = [0]
-
-
-def _in_main_thread() -> bool:
-    return threading.current_thread() is threading.main_thread()
 
 
 def raise_dropped() -> None:
