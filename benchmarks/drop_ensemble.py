@@ -3,11 +3,11 @@ step control or the model does to the work, beyond the chaos of one history.
 
 The peer drop's later contacts depend on the phase of the beams' vibration, and its
 histories part after about 1.2 s under any perturbation (benchmarks/README.md, session
-25). So do its step counts: the 2 s drop with the falling beam 0.1-0.5 mm higher takes
-6289-7268 steps (IPIP points) and 8433-9206 (CG) where one run takes 7268 and 9206
-(session 38). A change that moves the steps of one run by less than that moves them by
-chance; this script measures it over ``--members`` runs whose falling beam starts
-``k * --dy`` higher (k = 0 .. members - 1; k = 0 is peers.py's case), each a
+25). So do its step counts: the 2 s drop with the falling beam 0, 0.1, ..., 0.5 mm
+higher takes 6289-7268 steps (IPIP points) and 8433-9206 (CG), peers.py's case (0 mm)
+7268 and 9206 (session 38). A change that moves the steps of one run by less than that
+moves them by chance; this script measures it over ``--members`` runs whose falling beam
+starts ``k * --dy`` higher (k = 0 .. members - 1; k = 0 is peers.py's case), each a
 ``beamcontact run`` as a user types it (every default output written), and prints for
 each model and each choice of ``--outliers`` (``beams.remove_outliers`` of the falling
 beam) one row per member and their mean, smallest and largest: steps, attempts (steps
