@@ -79,8 +79,8 @@ class VtkSeries:
         radius = np.concatenate([np.full(m.shape[0], r)
                                  for m, r in zip(self._maps, self._radii, strict=True)])
         name = f"vtk/beams_{len(self._entries):05d}.vtu"
-        # uncompressed: zlib took 0.4 of the 0.65 ms a snapshot costs the time loop, for
-        # files of tens of kilobytes (benchmarks/README.md, session 38)
+        # uncompressed: zlib took 0.4 of the 0.65 ms a snapshot of the peer drop costs the
+        # time loop, to make its 39 kB 15 (benchmarks/README.md, session 38)
         meshio.write(self.out_dir / name, meshio.Mesh(
             pts, self._cells, point_data={"displacement": pts - self._ref_pts, "radius": radius},
             cell_data={"beam": [self._beam_ids]}), compression=None)
