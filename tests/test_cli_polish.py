@@ -80,6 +80,20 @@ def test_sweep_help_keeps_square_brackets():
     assert "[0, -9.81]" in proc.stdout
 
 
+@pytest.mark.parametrize("command", ["run", "sweep", "check", "compare"])
+@pytest.mark.parametrize("columns", [80, 100])
+def test_command_help_fills_the_terminal_width(command, columns):
+    """The prose of a command's help wraps at the terminal's width only: no line of a
+    paragraph ends early because the docstring's source line did."""
+    proc = _cli(command, "--help", COLUMNS=str(columns))
+    assert proc.returncode == 0, proc.stderr
+    prose = proc.stdout.split("Usage:", 1)[1].split("╭", 1)[0].splitlines()[1:]
+    lines = [line.strip() for line in prose]
+    for line, after in zip(lines[:-1], lines[1:], strict=True):
+        if line and after:  # inside a paragraph: the next word did not fit on this line
+            assert len(line) + 1 + len(after.split()[0]) > columns - 2, (line, after)
+
+
 def _help_texts():
     """(where, help text) of the app, every command and every parameter."""
     group = typer.main.get_command(app)

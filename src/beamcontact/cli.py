@@ -15,6 +15,7 @@ tag is written ``\\[`` (e.g. ``\\[solver]``), or the markup renderer swallows it
 
 import atexit
 import gc
+import inspect
 import os
 import sys
 import tempfile
@@ -403,6 +404,7 @@ def sweep(
 
     Writes DIR/<run>/ (the outputs of `run`), DIR/sweep.csv (parameters, status, first
     impact, first amplitudes, smallest gap, wall time per run) and DIR/plots/ (overlays).
+
     Exit code 0 when every run completed, 1 when some failed, 2 for invalid input, 130 when
     interrupted (Ctrl-C; finished runs are kept and the same command goes on from there).
     """
@@ -470,10 +472,13 @@ def _report_sweep(rows: list[dict], out: Path) -> None:
 
 @app.command()
 def check(case: Annotated[Path, typer.Argument(help="Case file (TOML).")]) -> None:
-    """Validate a case file without running it: its keys and values, and what a run
-    checks before its first step (a static beam nothing holds, beams that interpenetrate
-    in the initial configuration); keys that the case's model or analysis ignores are
-    warnings. Exit code 0 when valid, 2 when not."""
+    """Validate a case file without running it.
+
+    Checks its keys and values, and what a run checks before its first step (a static
+    beam nothing holds, beams that interpenetrate in the initial configuration); keys
+    that the case's model or analysis ignores are warnings.
+
+    Exit code 0 when valid, 2 when not."""
     import beamcontact
     from beamcontact.io.case import CaseError
     from beamcontact.runner import check_case
@@ -494,6 +499,17 @@ def check(case: Annotated[Path, typer.Argument(help="Case file (TOML).")]) -> No
 
 # whether `run` ran in this process (main ends such a process without teardown)
 _RAN = False
+
+
+def _unwrapped(doc: str) -> str:
+    """A command's docstring as its help: each paragraph on one line, for the terminal to
+    wrap (Typer keeps the source's line breaks after the first paragraph, and the help
+    then showed ragged lines at any width)."""
+    return "\n\n".join(" ".join(p.split()) for p in inspect.cleandoc(doc).split("\n\n"))
+
+
+for _command in app.registered_commands:
+    _command.help = _unwrapped(inspect.getdoc(_command.callback) or "")
 
 
 def main() -> None:

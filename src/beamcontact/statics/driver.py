@@ -158,7 +158,7 @@ def _ramp(engine: StaticEngine, load_steps: int, max_cutbacks: int,
             loop.dlam = 0.5 * dl
             continue
         loop.ctl[CONSECUTIVE] = 0.0
-        loop.state, loop.lam, loop.steps = engine.accept(loop.state, res), loop.lam + dl, \
+        loop.state, loop.lam, loop.steps = engine.accept(loop.state, res), loop.reached(dl), \
             loop.steps + 1
         if on_step is not None:
             values = engine.values(loop.state, loop.lam, loop.cs)
@@ -188,6 +188,13 @@ class _LoadLoop:
     compile_time: float | None = None  # the first solve's seconds outside Numba's compiles
     start: Stopwatch = field(default_factory=Stopwatch)
 
+    def reached(self, dl: float) -> float:
+        """The load factor after an increment dl: exactly 1 at the last (increments of
+        1 / load_steps sum to 1 only within round-off, so the full load would otherwise
+        be applied as 0.9999999999999999)."""
+        lam = self.lam + dl
+        return 1.0 if lam > 1.0 - 1e-12 else lam
+
     def result(self, status: str, message: str) -> StaticResult:
         return StaticResult(status, message, self.steps, self.iterations,
                             int(self.ctl[CUTBACKS]), self.lam,
@@ -201,7 +208,7 @@ def _load_attempt(loop: _LoadLoop, dl: float) -> LoadAttempt | None:
     frozen there; None when the candidate list overflowed or the solution left the search
     margin (both grown in ``loop``; the attempt is redone)."""
     watch = Stopwatch()
-    res = loop.engine.attempt(loop.state, loop.lam + dl, loop.margin, loop.capacity)
+    res = loop.engine.attempt(loop.state, loop.reached(dl), loop.margin, loop.capacity)
     if isinstance(res, Overflow):
         loop.capacity = loop.engine.contact.grown(loop.capacity, res.count, res.load)
         return None
@@ -237,7 +244,7 @@ def _failure(loop: _LoadLoop, res: LoadAttempt, dl: float, kind: int) -> str:
     why = "Newton did not converge" if kind == NEWTON else (
         f"the smallest gap {res.gap:.3g} m is below -max_penetration = "
         f"{-loop.engine.contact.max_penetration:.3g} m")
-    return (f"{why} at load factor {loop.lam + dl:.6g} "
+    return (f"{why} at load factor {loop.reached(dl):.6g} "
             f"({res.iterations} iterations, residual {res.residual_norm:.3e} "
             f"from {res.initial_residual_norm:.3e}) after "
             f"{int(loop.ctl[CONSECUTIVE]) - 1} successive halvings of the load increment "
