@@ -138,6 +138,24 @@ def test_check_is_as_strict_as_run(tmp_path):
         "warning: analysis.load_steps: ignored in a dynamic analysis"]
 
 
+@pytest.mark.parametrize("model,error", [("none", False), ("ipip", False), ("cg", True)])
+def test_pairing_is_an_error_only_with_the_coarse_grained_law(tmp_path, model, error):
+    """Keys of a law the case does not use are warnings, so that one file serves a sweep
+    over contact.model (none, ipip, cg); only a pairing with "cg" is refused, since it
+    would say something about the coarse-grained law that is not so."""
+    def pairing(raw):
+        raw["contact"].update(model=model, pairing="zones")
+
+    proc = _cli("check", _variant(tmp_path, f"{model}.toml", pairing))
+    if error:
+        _one_line(proc, 2, 'contact.pairing: applies to model "ipip" only')
+        return
+    assert proc.returncode == 0, proc.stderr
+    warned = [w for w in proc.stderr.splitlines() if "contact.pairing" in w]
+    assert warned == ([] if model == "ipip" else [
+        'warning: contact.pairing: ignored with no contact law (it applies to model "ipip")'])
+
+
 def test_progress_into_a_log_is_lines_not_a_bar(monkeypatch):
     """Where the output is not a terminal (a batch job's log) the progress is the title
     and a readable line every LOG_SECONDS and at the end, not a bar's frames."""

@@ -166,9 +166,9 @@ def _check_references(case: Case) -> None:
     if case.contact.self_exclusion is not None and not case.contact.self_contact:
         raise CaseError("contact.self_exclusion: applies only with contact.self_contact = "
                         "true")
-    if case.contact.model != "ipip" and case.contact.pairing is not None:
-        raise CaseError(f"contact.pairing: applies to model \"ipip\" only (model is "
-                        f"\"{case.contact.model}\")")
+    if case.contact.model == "cg" and case.contact.pairing is not None:
+        raise CaseError("contact.pairing: applies to model \"ipip\" only (model is "
+                        "\"cg\")")
     if case.contact.model == "cg":
         radii = [b.section.radius if b.section.shape == "circle" else 0.5 * b.section.height
                  for b in case.beams]
@@ -227,12 +227,13 @@ def ignored_keys(case: Case) -> list[str]:
     use (it would otherwise be silently ignored): a law's parameters under the other law
     or without contact, time-stepping keys in statics, load_steps in dynamics. Warnings,
     not errors, so that one case file serves a sweep over contact.model or a static and a
-    dynamic run; the pairing of "cg" stays an error (it changes what "ipip" computes)."""
+    dynamic run; a pairing with "cg" stays an error (it would say something about the
+    coarse-grained law that is not so)."""
     found = []
     contact, given = case.contact, case.contact.model_fields_set
     for law, keys in _LAW_KEYS.items():
         if contact.model != law:
-            for key in sorted(keys & given - {"pairing"}):
+            for key in sorted(keys & given - ({"pairing"} if contact.model == "cg" else set())):
                 used = "no contact law" if contact.model == "none" else \
                     f"model \"{contact.model}\""
                 found.append(f"contact.{key}: ignored with {used} (it applies to "
