@@ -50,13 +50,13 @@ def _drop(model: str, t_end: float, pairing: str | None = None) -> dict:
     return raw
 
 
-def _solve(raw: dict, host: bool):
+def _solve(raw: dict, host: bool, capacity: int = 64):
     start = dynamic_start(prepare(parse_case(raw)))
     engine = HostLooped(start.engine) if host else start.engine
     assert engine.runs_loop is not host
     rows = []
     res = solve_dynamic(engine, start.state, raw["analysis"]["t_end"], start.prepared.length,
-                        start.control, on_step=rows.append)
+                        start.control, on_step=rows.append, capacity=capacity)
     assert res.status == "completed", res.message
     if not host:  # the compiled loop's seconds per thread count (summary's loop_threads)
         seconds = start.engine.thread_seconds
@@ -85,6 +85,19 @@ def test_compiled_loop_makes_the_host_loops_steps(variant):
                      (a.state.a, b.state.a), (a.state.f_pot, b.state.f_pot)):
             assert np.array_equal(np.asarray(x), y)
     assert max(r.diagnostics["E_contact"] for r in rows) > 0.0  # contact acted
+
+
+def test_the_host_loop_redoes_no_native_attempt_for_a_capacity():
+    """The native engine's candidate lists have no fixed length, so the host loop takes
+    its counts as they are: with a capacity of 1 candidate (the JAX engine would redo
+    each attempt with more candidates than that) it makes the compiled loop's steps
+    and Newton iterations, none redone and counted twice."""
+    raw = _drop("cg", 0.8)
+    (ref, ref_rows), (res, rows) = (_solve(raw, host=True, capacity=1),
+                                    _solve(raw, host=False, capacity=1))
+    assert (ref.steps, ref.iterations, ref.cutbacks) == (res.steps, res.iterations,
+                                                         res.cutbacks)
+    assert [r.iterations_total for r in ref_rows] == [r.iterations_total for r in rows]
 
 
 class LoopLater(HostLooped):

@@ -291,8 +291,14 @@ def accept_step(ctl, values, h, iterations, created, jump, limits):
         ctl[LAST + d] = values[DIAG0 + d]
     h_next = next_step(h_used, values[V_ERROR], limits.tol, limits.dt, after_rejection,
                        iterations)
-    if h_used < h * (1.0 - 1e-12):  # shortened by the advancement bound, not the error
-        h_next = max(h_next, min(h, GROW_MAX * h_used))
+    if h_used < h * (1.0 - 1e-12):
+        # shortened by the advancement bound, not by the error: back towards the step
+        # attempted, whatever came before it or its Newton iterations, but only as far
+        # as the short step's own error allows
+        error = values[V_ERROR]
+        grow = GROW_MAX if limits.tol <= 0.0 or error <= 0.0 else \
+            min(GROW_MAX, SAFETY * (limits.tol / error) ** (1.0 / 3.0))
+        h_next = max(h_next, min(h, grow * h_used))
     ctl[H_TRY] = h_next
 
 

@@ -19,7 +19,9 @@ call and hands the accepted ones back to :func:`solve_dynamic` in order. The rul
   ``error_tol * L`` (L the longest beam). The next step is ``h (error_tol L / e)^(1/3)``
   times a safety factor 0.9, kept between 0.2 h and 2 h, never longer than ``dt`` (the
   first and the largest step) and not longer than h right after a rejection (no
-  oscillation between rejected and accepted sizes). ``error_tol = 0`` gives fixed steps.
+  oscillation between rejected and accepted sizes). A step that the advancement bound
+  shortened grows back towards the step attempted, as far as its own error allows.
+  ``error_tol = 0`` gives fixed steps.
 * **No tunnelling**: after the solve, no point pair may have approached by more than
   ``ADVANCE_ACCEPT`` of its gap (plus the law's slack); else the step is redone shorter.
 * **Energy account** (both signs): ``E_set_change`` sums the jumps of the contact energy
@@ -119,6 +121,10 @@ class Engine(Protocol):
         name: "jax" or "native".
         contact: the contact problem (None: no contact): its capacities and their growth,
             and ``max_penetration``, are the loop's.
+        fixed_capacity: whether the attempt's candidate lists hold only the capacity it
+            is given (the JAX engine's arrays of fixed shape), so that a count beyond it
+            is an overflow: the loop grows the capacity and redoes the attempt. The
+            native engine's lists have no fixed length: its counts are never overflows.
 
     An engine that runs the loop itself (the native one) also has ``runs_loop`` True and
     ``advance(state, ctl, limits, emit) -> (state, stopping attempt or None, seconds of
@@ -132,6 +138,7 @@ class Engine(Protocol):
 
     name: str
     contact: ContactProblem | None
+    fixed_capacity: bool
 
     def attempt(self, state, h: float, motion_factor: float,
                 capacity: SearchCapacity | None) -> Attempt | Overflow:
@@ -420,7 +427,7 @@ def _host_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emi
                 first_s = watch.outside_compiles()  # one attempt, and XLA compiling it
             values, counts = attempt.values, attempt.counts
             ctl[ITERATIONS] += counts[C_ITERATIONS]
-            if contact is not None:
+            if contact is not None and engine.fixed_capacity:
                 # the candidates after a diverged Newton solve say nothing about the solution
                 converged = bool(counts[C_FLAGS] & CONVERGED)
                 count = max(counts[C_COUNT], counts[C_COUNT_AFTER] if converged else 0)
@@ -434,8 +441,8 @@ def _host_loop(engine: Engine, state, ctl: np.ndarray, limits: Limits, emit: Emi
             if outcome == ACCEPT:
                 state = engine.at_time(attempt.state, float(ctl[T]))
                 pending.append((state, np.array(values), np.array(counts), ctl.copy()))
-                if time.perf_counter() - emitted >= EMIT_SECONDS:
-                    hand_over()
+            if time.perf_counter() - emitted >= EMIT_SECONDS:  # also amid rejections
+                hand_over()
         return state, None, first_s
     finally:
         hand_over()

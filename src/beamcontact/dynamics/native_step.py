@@ -124,7 +124,7 @@ def _newmark(u, u_n, v_n, a_n, c_a, h, c_1, gamma, v_out, a_out):
 
 
 @njit
-def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n,
+def _residual_tangent(nm, frozen, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, tangent_n,
                       position, positions, free_layout, band, B, C, D, kl, ku, r, r_pot,
                       r_layout, k_blocks):
     """The HHT residual at u with supports applied (global numbering, into r), f_pot(u)
@@ -132,14 +132,14 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
     with its residual in layout order (r_layout); returns (||r||, the contact energy at
     u, the strain energy at u)."""
     e_strain = nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
-                                        t_n, r, r_pot, k_blocks, True)
+                                        tangent_n, r, r_pot, k_blocks, True)
     # without contact blocks no entry couples the band's beam with the border
-    coupled = contact[2].shape[0] > 0
+    coupled = frozen[2].shape[0] > 0
     bordered.zero(band, B, C, D, coupled)
     bordered.add_blocks(band, B, C, D, kl, ku, positions, k_blocks)
     e_contact = 0.0
     if coupled:
-        e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha,
+        e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *frozen, 1.0 + alpha,
                                    position, band, B, C, D, kl, ku, r_pot, r)
     norm = bordered.supported_residual(band, B, C, D, kl, ku, free_layout, position, r,
                                        r_layout, coupled)
@@ -147,17 +147,17 @@ def _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, the
 
 
 @njit
-def _residual(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, t_n, r, r_pot,
+def _residual(nm, frozen, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n, tangent_n, r, r_pot,
               k_blocks):
     """:func:`_residual_tangent` without the tangent: the supported HHT residual into r,
     f_pot(u) into r_pot, (||r||, the contact energy, the strain energy), the same numbers
     bit for bit; k_blocks is scratch."""
     e_strain = nmod.hht_residual_blocks(nm, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
-                                        t_n, r, r_pot, k_blocks, False)
+                                        tangent_n, r, r_pot, k_blocks, False)
     e_contact = 0.0
-    if contact[2].shape[0] > 0:
+    if frozen[2].shape[0] > 0:
         no = np.empty((0, 0))
-        e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0 + alpha,
+        e_contact = contact_blocks(nmod._positions(nm.x_ref, u), *frozen, 1.0 + alpha,
                                    np.empty(0, np.int64), no, no, no, no, -1, -1, r_pot, r)
     return bordered.supported_norm(nm.free, r), e_contact, e_strain
 
@@ -179,15 +179,15 @@ def _remaining_error(band, B, C, D, kl, ku, ipiv, ipiv_s, position, r, r_layout,
 
 
 @njit
-def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s, kl,
-            ku, u_n, v_n, a_n, f_pot_n, theta_n, t_n, h, alpha, rtol, utol, etol, dt_ref,
+def attempt(nm, frozen, position, positions, free_layout, band, B, C, D, ipiv, ipiv_s, kl,
+            ku, u_n, v_n, a_n, f_pot_n, theta_n, tangent_n, h, alpha, rtol, utol, etol, dt_ref,
             total_mass, max_iterations, diverge_after, e_contact_n, e_kin_n, u, v, a, f_pot,
             theta, tangent, values, counts):
-    """One attempt at a step h from (u_n, v_n, a_n, f_pot_n, theta_n, t_n) into (u, v, a,
+    """One attempt at a step h from (u_n, v_n, a_n, f_pot_n, theta_n, tangent_n) into (u, v, a,
     f_pot, theta, tangent) and the report vectors ``values``, ``counts``
     (:mod:`~beamcontact.dynamics.report`; meaningful state only when converged).
 
-    ``contact``: the frozen contact set, (conn, R, pairs, W, R12, amplitudes, law, m,
+    ``frozen``: the frozen contact set, (conn, R, pairs, W, R12, amplitudes, law, m,
     q_reg, cutoff) as :func:`contact_blocks` takes them (no pairs: no contact); the step h
     is already shortened by the conservative advancement; ``e_contact_n`` is its energy
     at u_n and ``e_kin_n`` the kinetic energy of (u_n, v_n) when the caller knows them
@@ -218,11 +218,11 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
                          nm.block_dofs.shape[1]))
     args = (position, positions, free_layout, band, B, C, D, kl, ku, r, f_pot, r_layout,
             k_blocks)
-    norm0, e_contact, e_strain = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs,
-                                                   alpha, f_pot_n, theta_n, t_n, *args)
+    norm0, e_contact, e_strain = _residual_tangent(nm, frozen, u, u_n, v_n, a_n, coeffs,
+                                                   alpha, f_pot_n, theta_n, tangent_n, *args)
     done, failed = norm0 <= atol, not np.isfinite(norm0)
     k, rn, last_step = 0, norm0, 0.0
-    coupled = contact[2].shape[0] > 0
+    coupled = frozen[2].shape[0] > 0
     while not done and not failed and k < max_iterations:
         step, finite = bordered.newton_update(band, B, C, D, kl, ku, ipiv, ipiv_s, position,
                                               r_layout, du, u, coupled)
@@ -234,11 +234,11 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
         # the last evaluation is at the solution: its contact and strain energies are the
         # step's
         if light:
-            rn, e_contact, e_strain = _residual(nm, contact, u, u_n, v_n, a_n, coeffs, alpha,
-                                                f_pot_n, theta_n, t_n, r, f_pot, k_blocks)
+            rn, e_contact, e_strain = _residual(nm, frozen, u, u_n, v_n, a_n, coeffs, alpha,
+                                                f_pot_n, theta_n, tangent_n, r, f_pot, k_blocks)
         else:
-            rn, e_contact, e_strain = _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs,
-                                                        alpha, f_pot_n, theta_n, t_n, *args)
+            rn, e_contact, e_strain = _residual_tangent(nm, frozen, u, u_n, v_n, a_n, coeffs,
+                                                        alpha, f_pot_n, theta_n, tangent_n, *args)
         converged = rn <= rtol * norm0 + atol or step <= utol_h
         if not converged and etol > 0.0 and np.isfinite(rn):
             converged = _remaining_error(band, B, C, D, kl, ku, ipiv, ipiv_s, position, r,
@@ -248,8 +248,8 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
         done = converged and not failed
         k += 1
         if light and not done and not failed and k < max_iterations:
-            _residual_tangent(nm, contact, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
-                              t_n, *args)
+            _residual_tangent(nm, frozen, u, u_n, v_n, a_n, coeffs, alpha, f_pot_n, theta_n,
+                              tangent_n, *args)
         last_step = step
     # the free ends' tied dofs follow their masters (v and a too: their Newmark values
     # agree only to round-off, which the acceleration's 1 / (beta h^2) amplifies)
@@ -257,7 +257,7 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
     _newmark(u, u_n, v_n, a_n, coeffs[0], h, coeffs[2], gamma, v, a)
     nmod.tie_dependent(nm, v)
     nmod.tie_dependent(nm, a)
-    nmod.update_load_state(nm, u, theta_n, t_n, theta, tangent)
+    nmod.update_load_state(nm, u, theta_n, tangent_n, theta, tangent)
     e_gravity, e_ext = nmod.external_energies(nm, nmod._positions(nm.x_ref, u), 1.0, theta,
                                               tangent)
     e_kin, p = nmod.kinetic_energy_momentum(nm, u, v)
@@ -279,9 +279,9 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
                                 * np.sqrt(2.0 * max(e_kin, e_kin_n) * total_mass))
     values[V_STRAIN], values[V_GRAVITY], values[V_EXT] = e_strain, e_gravity, e_ext
     values[V_KIN], values[V_PX], values[V_PY] = e_kin, p[0], p[1]
-    if contact[2].shape[0] > 0:
+    if frozen[2].shape[0] > 0:
         values[V_CONTACT] = e_contact
-        values[V_EC_BEFORE] = (contact_energy(nm, contact, u_n) if np.isnan(e_contact_n)
+        values[V_EC_BEFORE] = (contact_energy(nm, frozen, u_n) if np.isnan(e_contact_n)
                                else e_contact_n)
     counts[:] = 0
     counts[C_FLAGS] = CONVERGED if done else 0
@@ -289,19 +289,19 @@ def attempt(nm, contact, position, positions, free_layout, band, B, C, D, ipiv, 
 
 
 @njit
-def initial_acceleration(nm, contact, u, v, theta, tangent, position, positions,
+def initial_acceleration(nm, frozen, u, v, theta, tangent, position, positions,
                          free_layout, band, B, C, D, ipiv, ipiv_s, kl, ku, f_pot, a):
     """The consistent initial acceleration (paper Sec. 4, as
     :func:`~beamcontact.dynamics.hht.initial_state`): f_pot(u) with the contact of the
-    frozen set ``contact`` into f_pot, and a from M(u) a = -(F_inertia(u, v, 0) + f_pot)
+    frozen set ``frozen`` into f_pot, and a from M(u) a = -(F_inertia(u, v, 0) + f_pot)
     on the free dofs (0 on the supported ones) into a."""
     n = u.shape[0]
     blocks = np.empty((nm.block_dofs.shape[0], nm.block_dofs.shape[1],
                        nm.block_dofs.shape[1]))
     nmod.potential_residual_blocks(nm, u, 1.0, theta, tangent, f_pot, blocks)
-    if contact[2].shape[0] > 0:
+    if frozen[2].shape[0] > 0:
         no = np.empty((0, 0))
-        contact_blocks(nmod._positions(nm.x_ref, u), *contact, 1.0, position, no, no, no,
+        contact_blocks(nmod._positions(nm.x_ref, u), *frozen, 1.0, position, no, no, no,
                        no, -1, -1, f_pot, np.zeros(n))
     f0 = np.empty(n)
     nmod.inertia_force_mass_blocks(nm, u, v, f0, blocks)
@@ -313,7 +313,7 @@ def initial_acceleration(nm, contact, u, v, theta, tangent, position, positions,
     # B and C are zero (no contact tangent is assembled here), so either value of the
     # flag gives the same numbers; the attempt's flag, a variable, lets the solver's
     # kernels be the attempt's (a constant would compile them a second time)
-    coupled = contact[2].shape[0] > 0
+    coupled = frozen[2].shape[0] > 0
     bordered.apply_supports(band, B, C, D, kl, ku, free_layout, r_layout, coupled)
     a_layout = np.empty(n)
     bordered.factor_solve(band, B, C, D, kl, ku, ipiv, ipiv_s, r_layout, a_layout, coupled)
@@ -323,11 +323,11 @@ def initial_acceleration(nm, contact, u, v, theta, tangent, position, positions,
 
 
 @njit
-def contact_energy(nm, contact, u):
+def contact_energy(nm, frozen, u):
     """The energy of the frozen contact set at displacement u: the sum in block order of
     :func:`~beamcontact.contact.blocks_native.block_energy`, the energy that
     :func:`contact_blocks` returns, bit for bit, without its forces and tangent."""
-    ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff = contact
+    ce_conn, ce_R, pairs, W, R12, amps, law, m, q_reg, cutoff = frozen
     energies = np.empty(pairs.shape[0])
     blocks_native.blocks_energy(nmod._positions(nm.x_ref, u), ce_conn, ce_R, pairs, W, R12,
                                 amps, law, m, q_reg, cutoff, energies,

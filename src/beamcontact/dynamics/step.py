@@ -171,6 +171,7 @@ class JaxEngine:
     """
 
     name = "jax"
+    fixed_capacity = True
 
     def __init__(self, model: Model, contact: ContactProblem | None, alpha: float,
                  options: NewtonOptions, length: float, dt_ref: float):
