@@ -574,6 +574,7 @@ class NativeEngine:
 
     name = "native"
     runs_loop = True
+    fixed_capacity = False  # the candidate lists grow as they must (driver.Engine)
 
     def __init__(self, model, alpha: float, options: NewtonOptions, length: float,
                  dt_ref: float, contact=None):
