@@ -295,10 +295,8 @@ def accept_step(ctl, values, h, iterations, created, jump, limits):
         # shortened by the advancement bound, not by the error: back towards the step
         # attempted, whatever came before it or its Newton iterations, but only as far
         # as the short step's own error allows
-        error = values[V_ERROR]
-        grow = GROW_MAX if limits.tol <= 0.0 or error <= 0.0 else \
-            min(GROW_MAX, SAFETY * (limits.tol / error) ** (1.0 / 3.0))
-        h_next = max(h_next, min(h, grow * h_used))
+        h_next = max(h_next, min(h, next_step(h_used, values[V_ERROR], limits.tol,
+                                              limits.dt, False, 0)))
     ctl[H_TRY] = h_next
 
 
